@@ -1,0 +1,64 @@
+"""Initial conditions (the paper's Table 1: random position, theta = psi = phi = 0).
+
+The paper draws the aircraft's start at random in the airspace. A start must be
+feasible, so this project trims the box: the aircraft begins heading +x, flies
+one whole decision period before it can act and needs about one turn radius to
+turn away, so starts near the +x wall would leave the airspace whatever the
+agent does. Starts inside a disc around the destination's start are redrawn so
+that no episode begins solved. The defaults live in ``conf/simulation/paper.yaml``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+
+@dataclass(frozen=True)
+class InitialStateDistribution:
+    """Uniform box for the aircraft's start (metres), a start speed (m/s), and an exclusion disc."""
+
+    x_range: tuple[float, float] = (-9_500.0, 7_000.0)
+    y_range: tuple[float, float] = (-9_500.0, 9_500.0)
+    z_range: tuple[float, float] = (0.0, 5_000.0)
+    speed_range: tuple[float, float] = (200.0, 200.0)
+    min_horizontal_distance: float = 2_000.0  # m from the destination's start
+
+
+def _uniform(low: float, high: float, count: int, generator, device) -> torch.Tensor:
+    return low + (high - low) * torch.rand(count, generator=generator, device=device)
+
+
+def sample_initial_aircraft(
+    count: int,
+    distribution: InitialStateDistribution,
+    destination_start: torch.Tensor,
+    generator: torch.Generator | None = None,
+    device: torch.device | str = "cpu",
+    max_redraws: int = 32,
+) -> torch.Tensor:
+    """Draw ``count`` aircraft states ``(count, 7)``; theta = psi = phi = 0 (Table 1).
+
+    ``destination_start`` is ``(count, 4)``: starts closer than
+    ``min_horizontal_distance`` to it are redrawn (vectorised rejection sampling).
+    """
+    x = _uniform(*distribution.x_range, count, generator, device)
+    y = _uniform(*distribution.y_range, count, generator, device)
+    for _ in range(max_redraws):
+        too_close = torch.hypot(x - destination_start[:, 0], y - destination_start[:, 1]) < (
+            distribution.min_horizontal_distance
+        )
+        if not bool(too_close.any()):
+            break
+        x = torch.where(too_close, _uniform(*distribution.x_range, count, generator, device), x)
+        y = torch.where(too_close, _uniform(*distribution.y_range, count, generator, device), y)
+    else:
+        raise ValueError(
+            f"min_horizontal_distance={distribution.min_horizontal_distance} m leaves (almost) no room "
+            f"in the start box x={distribution.x_range}, y={distribution.y_range}"
+        )
+    z = _uniform(*distribution.z_range, count, generator, device)
+    speed = _uniform(*distribution.speed_range, count, generator, device)
+    zeros = torch.zeros(count, device=device)
+    return torch.stack((x, y, z, speed, zeros, zeros, zeros), dim=-1)

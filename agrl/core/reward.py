@@ -1,0 +1,112 @@
+"""The paper's reward (equations 5-11), as pure batched functions.
+
+R_t = T(S_{t+1}) + F_t with the potential-based shaping
+F_t = gamma * Phi(S_{t+1}) - Phi(S_t) (equation 7) and Phi = C + P (equation 8).
+
+Realisation of Phi(S, A): the paper's Phi depends on the state and the action
+taken in it, so F_t would need the *next* action A_{t+1}, which does not exist
+when the transition is stored. This project evaluates the continuous-action term
+C on the change between the two most recent actions, which the state carries
+(``last_action`` = A_{t-1} and ``action_before_last`` = A_{t-2}). Then
+Phi(S_{t+1}) depends only on S_{t+1} = (..., A_t, A_{t-1}): switching maneuver at
+step t costs gamma * (c4 - c5) relative to holding it, and the shaping terms
+telescope exactly: sum_t gamma^t F_t = gamma^T Phi(S_T) - Phi(S_0), with
+Phi(terminal) = 0, so the optimal policy is unchanged (equations 15-18).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from agrl.core.aircraft import wrap_angle
+from agrl.core.termination import Outcome
+
+
+@dataclass(frozen=True)
+class RewardParameters:
+    """Table 2's constants (defaults) and the two shaping switches."""
+
+    success: float = 20.0  # c1
+    out_of_airspace: float = -20.0  # c2
+    budget_exhausted: float = -10.0  # c3
+    action_change: float = -0.1  # c4
+    action_hold: float = -0.01  # c5
+    distance_weight: float = 1e-4  # c6, per metre
+    heading_weight: float = 0.5  # c7
+    altitude_weight: float = 1e-5  # c8, per metre
+    gamma: float = 0.99
+    use_continuous_action: bool = True  # the C term of equation 8
+    use_position: bool = True  # the P term of equation 8
+
+
+def termination_reward(outcome: torch.Tensor, params: RewardParameters) -> torch.Tensor:
+    """Equation 6: c1 on success, c2 out of the airspace, c3 when the budget is spent, else 0."""
+    reward = torch.zeros(outcome.shape, dtype=torch.float32, device=outcome.device)
+    reward = torch.where(outcome == Outcome.SUCCESS, params.success, reward)
+    reward = torch.where(outcome == Outcome.OUT_OF_AIRSPACE, params.out_of_airspace, reward)
+    return torch.where(outcome == Outcome.BUDGET_EXHAUSTED, params.budget_exhausted, reward)
+
+
+def continuous_action_potential(
+    last_action: torch.Tensor, action_before_last: torch.Tensor, params: RewardParameters
+) -> torch.Tensor:
+    """Equation 9: c4 if the action changed, else c5 (on the last two actions, see module doc)."""
+    changed = last_action != action_before_last
+    return torch.where(changed, params.action_change, params.action_hold).to(torch.float32)
+
+
+def position_potential(
+    aircraft_state: torch.Tensor, destination_state: torch.Tensor, params: RewardParameters
+) -> torch.Tensor:
+    """Equations 10-11: P = c6 D + c7 H + c8 A.
+
+    D is minus the horizontal Euclidean distance (equation 11 prints a minus
+    inside the square root, a typo), H the cosine of the heading difference and
+    A minus the altitude difference.
+    """
+    dx = aircraft_state[..., 0] - destination_state[..., 0]
+    dy = aircraft_state[..., 1] - destination_state[..., 1]
+    distance_term = -torch.sqrt(dx * dx + dy * dy)
+    heading_term = torch.cos(wrap_angle(aircraft_state[..., 5] - destination_state[..., 3]))
+    altitude_term = -(aircraft_state[..., 2] - destination_state[..., 2]).abs()
+    return (
+        params.distance_weight * distance_term
+        + params.heading_weight * heading_term
+        + params.altitude_weight * altitude_term
+    )
+
+
+def potential(
+    aircraft_state: torch.Tensor,
+    destination_state: torch.Tensor,
+    last_action: torch.Tensor,
+    action_before_last: torch.Tensor,
+    terminal: torch.Tensor,
+    params: RewardParameters,
+) -> torch.Tensor:
+    """Equation 8: Phi = C + P, each term switchable; 0 in terminal states."""
+    value = torch.zeros(aircraft_state.shape[:-1], dtype=torch.float32, device=aircraft_state.device)
+    if params.use_continuous_action:
+        value = value + continuous_action_potential(last_action, action_before_last, params)
+    if params.use_position:
+        value = value + position_potential(aircraft_state, destination_state, params)
+    return torch.where(terminal, torch.zeros_like(value), value)
+
+
+def shaping_reward(
+    potential_before: torch.Tensor, potential_after: torch.Tensor, params: RewardParameters
+) -> torch.Tensor:
+    """Equation 7: F = gamma * Phi(S_{t+1}) - Phi(S_t)."""
+    return params.gamma * potential_after - potential_before
+
+
+def step_reward(
+    outcome: torch.Tensor,
+    potential_before: torch.Tensor,
+    potential_after: torch.Tensor,
+    params: RewardParameters,
+) -> torch.Tensor:
+    """Equation 5: R = T + F."""
+    return termination_reward(outcome, params) + shaping_reward(potential_before, potential_after, params)

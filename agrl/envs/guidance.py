@@ -1,0 +1,270 @@
+"""The batched TorchRL guidance environment.
+
+State lives in the TensorDict (the paper's equation-4 fields plus the
+destination's motion and two counters), so the environment itself holds only
+its parameters and a random generator: partial resets, scenario replay and
+re-simulation by the policy-reuse step all follow from that.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.data import Bounded, Categorical, Composite, Unbounded
+from torchrl.envs import EnvBase
+
+from agrl.core.aircraft import MANEUVER_NAMES
+from agrl.core.destinations import redraw_irregular_motion
+from agrl.core.observation import OBSERVATION_SIZE, policy_observation
+from agrl.core.reward import potential, step_reward
+from agrl.core.simulation import DecisionSimulator
+from agrl.core.initial_states import sample_initial_aircraft
+from agrl.core.termination import Outcome
+from agrl.envs.parameters import GuidanceParameters, MotionKind
+
+NUM_ACTIONS = len(MANEUVER_NAMES)
+
+#: Entries that together are the full simulator state of one row.
+STATE_KEYS = (
+    "aircraft_state",
+    "destination_state",
+    "destination_speed",
+    "destination_turn_rate",
+    "last_action",
+    "action_before_last",
+    "step_count",
+    "episode_return",
+    "instruction_count",
+)
+#: Entries a scenario (explicit initial conditions) provides; see :meth:`GuidanceEnv.scenario`.
+SCENARIO_KEYS = ("aircraft_state", "destination_state", "destination_speed", "destination_turn_rate")
+
+
+class GuidanceEnv(EnvBase):
+    """Aircraft guidance to a fixed or moving destination (the paper's MDP), batched.
+
+    Each step is one 3 s decision made of 150 integration steps of 20 ms. Actions
+    are the seven maneuvers (``Categorical(7)``). The reward is equation 5.
+
+    Scenario replay: ``env.reset(env.scenario(aircraft_state=..., destination_state=...,
+    destination_speed=..., destination_turn_rate=...))`` starts the (masked) rows from
+    those initial conditions instead of sampling them.
+    """
+
+    batch_locked = True
+
+    def __init__(
+        self,
+        params: GuidanceParameters | None = None,
+        num_envs: int = 1,
+        device: torch.device | str = "cpu",
+        seed: int | None = None,
+    ):
+        super().__init__(device=device, batch_size=torch.Size([num_envs]))
+        self.params = params if params is not None else GuidanceParameters()
+        if self.params.max_decisions < 1:
+            raise ValueError(f"max_decisions must be >= 1, got {self.params.max_decisions}")
+        self.simulator = DecisionSimulator(
+            self.params.simulation, self.params.maneuvers.controls(self.device), compile=self.params.compile
+        )
+        self._destination_start = torch.tensor(self.params.destination.start, device=self.device)
+        self._generator = torch.Generator(device=self.device)
+        self._pending_state: TensorDictBase | None = None
+        self._make_specs()
+        self._set_seed(seed if seed is not None else int(torch.empty((), dtype=torch.int64).random_()))
+
+    # ------------------------------------------------------------------ specs
+    def _make_specs(self) -> None:
+        batch = self.batch_size
+        airspace = self.params.simulation.airspace
+        self.observation_spec = Composite(
+            observation=Unbounded((*batch, OBSERVATION_SIZE), device=self.device),
+            aircraft_state=Unbounded((*batch, 7), device=self.device),
+            destination_state=Unbounded((*batch, 4), device=self.device),
+            destination_speed=Bounded(0.0, torch.inf, batch, device=self.device),
+            destination_turn_rate=Unbounded(batch, device=self.device),
+            last_action=Categorical(NUM_ACTIONS, batch, device=self.device),
+            action_before_last=Categorical(NUM_ACTIONS, batch, device=self.device),
+            step_count=Bounded(0, self.params.max_decisions, batch, dtype=torch.int64, device=self.device),
+            # bookkeeping for statistics, not policy inputs:
+            episode_return=Unbounded(batch, device=self.device),
+            instruction_count=Bounded(0, self.params.max_decisions, batch, dtype=torch.int64, device=self.device),
+            outcome=Categorical(len(Outcome), batch, device=self.device),
+            shape=batch,
+            device=self.device,
+        )
+        self.action_spec = Categorical(NUM_ACTIONS, batch, device=self.device)
+        self.reward_spec = Unbounded((*batch, 1), device=self.device)
+        self.done_spec = Composite(
+            done=Categorical(2, (*batch, 1), dtype=torch.bool, device=self.device),
+            terminated=Categorical(2, (*batch, 1), dtype=torch.bool, device=self.device),
+            shape=batch,
+            device=self.device,
+        )
+        del airspace
+
+    def _set_seed(self, seed: int | None) -> None:
+        self._generator.manual_seed(int(seed) if seed is not None else 0)
+
+    # ------------------------------------------------------------------ helpers
+    def observe(self, state: TensorDictBase) -> torch.Tensor:
+        """The policy input from the raw fields (one function for env and reuse step)."""
+        simulation = self.params.simulation
+        return policy_observation(
+            state["aircraft_state"], state["destination_state"], state["last_action"],
+            simulation.airspace, simulation.limits,
+        )
+
+    def potential(self, state: TensorDictBase, terminal: torch.Tensor) -> torch.Tensor:
+        return potential(
+            state["aircraft_state"], state["destination_state"], state["last_action"],
+            state["action_before_last"], terminal, self.params.reward,
+        )
+
+    def scenario(
+        self,
+        aircraft_state: torch.Tensor,
+        destination_state: torch.Tensor | None = None,
+        destination_speed: torch.Tensor | float | None = None,
+        destination_turn_rate: torch.Tensor | float | None = None,
+    ) -> TensorDict:
+        """A reset TensorDict that starts every row from explicit initial conditions.
+
+        Missing destination fields default to the task's start and motion.
+        """
+        batch = self.batch_size
+        count = batch.numel()
+        speed, turn_rate = self.params.destination.initial_motion(count, self._generator, self.device)
+        aircraft_state = torch.as_tensor(aircraft_state, dtype=torch.float32, device=self.device).expand(*batch, 7)
+        if destination_state is None:
+            destination_state = self._destination_start
+        destination_state = torch.as_tensor(destination_state, dtype=torch.float32, device=self.device)
+        values = {
+            "aircraft_state": aircraft_state,
+            "destination_state": destination_state.expand(*batch, 4),
+            "destination_speed": speed if destination_speed is None else destination_speed,
+            "destination_turn_rate": turn_rate if destination_turn_rate is None else destination_turn_rate,
+        }
+        values = {
+            key: torch.as_tensor(value, dtype=torch.float32, device=self.device).expand(
+                *batch, *((7,) if key == "aircraft_state" else (4,) if key == "destination_state" else ())
+            ).clone()
+            for key, value in values.items()
+        }
+        return TensorDict({"scenario": TensorDict(values, batch_size=batch)}, batch_size=batch, device=self.device)
+
+    def set_initial_state_distribution(self, distribution) -> None:
+        """Change where new episodes start (used by the training curriculum)."""
+        self.params = dataclasses.replace(self.params, initial_state=distribution)
+
+    def restore_on_next_reset(self, state: TensorDictBase) -> None:
+        """Make the next full reset return ``state`` (a saved batch of mid-episode rows).
+
+        Used to resume training exactly: a collector built on this env then
+        starts from the rows it was carrying when the checkpoint was written.
+        """
+        keys = (*STATE_KEYS, "outcome", "done", "terminated")
+        self._pending_state = state.select(*keys).to(self.device).clone()
+
+    # ------------------------------------------------------------------ EnvBase API
+    def _reset(self, tensordict: TensorDictBase | None, **kwargs) -> TensorDictBase:
+        batch = self.batch_size
+        count = batch.numel()
+        if self._pending_state is not None:
+            state, self._pending_state = self._pending_state, None
+            state["observation"] = self.observe(state)
+            return state
+        scenario = tensordict.get("scenario", None) if tensordict is not None else None
+        if scenario is not None:
+            aircraft_state = scenario["aircraft_state"].reshape(count, 7)
+            destination_state = scenario["destination_state"].reshape(count, 4)
+            destination_speed = scenario["destination_speed"].reshape(count)
+            destination_turn_rate = scenario["destination_turn_rate"].reshape(count)
+        else:
+            destination_state = self._destination_start.expand(count, 4).clone()
+            destination_speed, destination_turn_rate = self.params.destination.initial_motion(
+                count, self._generator, self.device
+            )
+            aircraft_state = sample_initial_aircraft(
+                count, self.params.initial_state, destination_state, self._generator, self.device
+            )
+        steady = torch.zeros(count, dtype=torch.int64, device=self.device)
+        state = TensorDict(
+            {
+                "aircraft_state": aircraft_state,
+                "destination_state": destination_state,
+                "destination_speed": destination_speed,
+                "destination_turn_rate": destination_turn_rate,
+                "last_action": steady,
+                "action_before_last": steady.clone(),
+                "step_count": torch.zeros(count, dtype=torch.int64, device=self.device),
+                "episode_return": torch.zeros(count, device=self.device),
+                "instruction_count": torch.zeros(count, dtype=torch.int64, device=self.device),
+                "outcome": torch.full((count,), int(Outcome.RUNNING), dtype=torch.int64, device=self.device),
+                "done": torch.zeros(count, 1, dtype=torch.bool, device=self.device),
+                "terminated": torch.zeros(count, 1, dtype=torch.bool, device=self.device),
+            },
+            batch_size=[count],
+            device=self.device,
+        ).reshape(batch)
+        state["observation"] = self.observe(state)
+        return state
+
+    def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
+        destination_speed = tensordict["destination_speed"]
+        destination_turn_rate = tensordict["destination_turn_rate"]
+        if self.params.destination.kind is MotionKind.IRREGULAR:
+            motion = self.params.destination
+            destination_speed, destination_turn_rate = redraw_irregular_motion(
+                destination_speed, destination_turn_rate, motion.change_probability,
+                motion.speed_range, motion.max_turn_rate, self._generator,
+            )
+        return self.transition(tensordict, destination_speed, destination_turn_rate)
+
+    def transition(
+        self, state: TensorDictBase, destination_speed: torch.Tensor, destination_turn_rate: torch.Tensor
+    ) -> TensorDictBase:
+        """One decision from ``state`` (with its ``action``) under the given destination motion.
+
+        Deterministic: the environment's step is this plus the irregular destination's
+        random redraw. The policy-reuse step calls it to re-simulate episodes exactly
+        as the environment would. Works for any batch shape of ``state``.
+        """
+        action = state["action"].long()
+        result = self.simulator(
+            state["aircraft_state"], state["destination_state"], destination_speed, destination_turn_rate, action
+        )
+        step_count = state["step_count"] + 1
+        outcome = torch.where(
+            (result.outcome == Outcome.RUNNING) & (step_count >= self.params.max_decisions),
+            int(Outcome.BUDGET_EXHAUSTED),
+            result.outcome,
+        )
+        terminal = outcome != Outcome.RUNNING
+        next_state = TensorDict(
+            {
+                "aircraft_state": result.aircraft_state,
+                "destination_state": result.destination_state,
+                "destination_speed": destination_speed,
+                "destination_turn_rate": destination_turn_rate,
+                "last_action": action,
+                "action_before_last": state["last_action"],
+                "step_count": step_count,
+                "outcome": outcome,
+                "done": terminal.unsqueeze(-1),
+                "terminated": terminal.unsqueeze(-1),
+            },
+            batch_size=state.batch_size,
+            device=self.device,
+        )
+        potential_before = self.potential(state, torch.zeros_like(terminal))
+        potential_after = self.potential(next_state, terminal)
+        reward = step_reward(outcome, potential_before, potential_after, self.params.reward)
+        next_state["reward"] = reward.unsqueeze(-1)
+        next_state["episode_return"] = state["episode_return"] + reward
+        # An instruction is a decision that changes the maneuver being flown.
+        next_state["instruction_count"] = state["instruction_count"] + (action != state["last_action"]).long()
+        next_state["observation"] = self.observe(next_state)
+        return next_state

@@ -1,0 +1,1 @@
+"""TorchRL pieces: actor-critic models, checkpoints, evaluation, the policy-reuse transform, the trainer."""

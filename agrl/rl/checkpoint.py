@@ -1,0 +1,109 @@
+"""Checkpoints: atomic writes, clear errors on load.
+
+A checkpoint is one ``torch.save`` file holding everything needed to continue a
+run exactly (networks, optimiser, counters, RNG states, the rows the collector
+was carrying), plus the resolved config and package versions for provenance.
+The observation is normalised by a fixed function (:mod:`agrl.core.observation`),
+so there are no running normalisation statistics to store.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import torch
+
+FORMAT_VERSION = 1
+PACKAGES = ("agrl", "torch", "torchrl", "tensordict", "hydra-core", "gymnasium")
+
+
+class CheckpointError(RuntimeError):
+    """A checkpoint cannot be used; the message names the file and the problem in one line."""
+
+
+def package_versions() -> dict[str, str]:
+    versions = {}
+    for name in PACKAGES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = "not installed"
+    return versions
+
+
+def save_checkpoint(payload: dict[str, Any], path: str | Path) -> Path:
+    """Write ``payload`` to ``path`` atomically: a temporary file in the same folder, then a rename.
+
+    A crash or Ctrl-C during the write leaves the previous file at ``path`` intact.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {"format_version": FORMAT_VERSION, "versions": package_versions(), **payload}
+    buffer = io.BytesIO()
+    torch.save(payload, buffer)
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(handle, "wb") as file:
+            file.write(buffer.getbuffer())
+            file.flush()
+            os.fsync(file.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def load_checkpoint(path: str | Path, required: tuple[str, ...] = ("actor",)) -> dict[str, Any]:
+    """Read a checkpoint, raising :class:`CheckpointError` if it is missing, corrupt or incomplete."""
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"{path}: no such checkpoint file")
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception as error:  # torch raises many types for truncated or foreign files
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise CheckpointError(f"{path}: not a readable checkpoint (corrupt or truncated?): {reason}") from None
+    if not isinstance(payload, dict) or "format_version" not in payload:
+        raise CheckpointError(f"{path}: not an agrl checkpoint (no format_version)")
+    if payload["format_version"] != FORMAT_VERSION:
+        raise CheckpointError(
+            f"{path}: checkpoint format {payload['format_version']} is not supported (expected {FORMAT_VERSION})"
+        )
+    missing = [key for key in required if key not in payload]
+    if missing:
+        raise CheckpointError(f"{path}: checkpoint lacks {', '.join(missing)}")
+    return payload
+
+
+def load_module_state(module: torch.nn.Module, state: dict[str, torch.Tensor], path: Path, what: str) -> None:
+    """Load ``state`` into ``module``, turning a layout mismatch into a one-line :class:`CheckpointError`."""
+    expected = {name: tuple(tensor.shape) for name, tensor in module.state_dict().items()}
+    found = {name: tuple(tensor.shape) for name, tensor in state.items()}
+    if expected != found:
+        differences = sorted(set(expected.items()) ^ set(found.items()))
+        detail = "; ".join(f"{name} {shape}" for name, shape in differences[:4])
+        raise CheckpointError(
+            f"{path}: the {what} network does not match this configuration (differing parameters: {detail})"
+        )
+    module.load_state_dict(state)
+
+
+def resolve_checkpoint_path(reference: str | Path) -> Path:
+    """``baseline`` -> the shipped baseline; a run directory -> its ``checkpoints/latest.pt``; else the path."""
+    if str(reference) == "baseline":
+        from agrl.baselines import baseline_checkpoint_path
+
+        return baseline_checkpoint_path()
+    path = Path(reference)
+    if path.is_dir():
+        candidate = path / "checkpoints" / "latest.pt"
+        if not candidate.is_file():
+            raise CheckpointError(f"{path}: run directory has no checkpoints/latest.pt")
+        return candidate
+    return path

@@ -1,0 +1,148 @@
+"""Evaluation as the paper does it (section 5): many episodes with the deterministic policy.
+
+Metrics (Table 3): success rate (with a 95 % Wilson interval), the average number
+of instructions per episode and the time to produce one instruction. An
+*instruction* is a decision whose maneuver differs from the one being flown (the
+aircraft starts in steady flight), i.e. what a controller would have to say;
+*decisions* counts every 3 s decision, including "keep flying as you are".
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import torch
+from tensordict import TensorDictBase
+from torchrl.envs import ExplorationType, set_exploration_type
+from torchrl.envs.utils import step_mdp
+
+from agrl.core.termination import Outcome
+from agrl.envs.guidance import GuidanceEnv
+
+
+@dataclass
+class EpisodeRecords:
+    """One row per episode; ``trajectory_*`` are ``(episodes, steps + 1, ...)`` when recorded."""
+
+    initial_aircraft_state: torch.Tensor
+    outcome: torch.Tensor
+    decisions: torch.Tensor
+    instructions: torch.Tensor
+    episode_return: torch.Tensor
+    final_distance: torch.Tensor
+    trajectory_aircraft: torch.Tensor | None = None
+    trajectory_destination: torch.Tensor | None = None
+
+
+@torch.no_grad()
+def run_episodes(
+    env: GuidanceEnv, actor, record_trajectories: bool = False, reset: TensorDictBase | None = None
+) -> EpisodeRecords:
+    """Run one episode per env row with the actor's deterministic (argmax) action.
+
+    Rows keep being stepped after they finish (the batch moves together), but only
+    each row's first episode is recorded.
+    """
+    td = env.reset(reset) if reset is not None else env.reset()
+    count = env.batch_size.numel()
+    device = env.device
+    initial = td["aircraft_state"].clone()
+    outcome = torch.zeros(count, dtype=torch.int64, device=device)
+    decisions = torch.zeros(count, dtype=torch.int64, device=device)
+    instructions = torch.zeros(count, dtype=torch.int64, device=device)
+    episode_return = torch.zeros(count, device=device)
+    final_distance = torch.zeros(count, device=device)
+    running = torch.ones(count, dtype=torch.bool, device=device)
+    aircraft_path = [td["aircraft_state"].clone()] if record_trajectories else None
+    destination_path = [td["destination_state"].clone()] if record_trajectories else None
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        for _ in range(env.params.max_decisions):
+            td = actor(td)
+            changed = td["action"] != td["last_action"]
+            td = env.step(td)
+            step = td["next"]
+            decisions += running
+            instructions += running & changed
+            episode_return += torch.where(running, step["reward"].squeeze(-1), 0.0)
+            if record_trajectories:
+                aircraft_path.append(torch.where(running[:, None], step["aircraft_state"], aircraft_path[-1]))
+                destination_path.append(
+                    torch.where(running[:, None], step["destination_state"], destination_path[-1])
+                )
+            finished = running & step["done"].squeeze(-1)
+            outcome = torch.where(finished, step["outcome"], outcome)
+            relative = step["aircraft_state"][:, :2] - step["destination_state"][:, :2]
+            final_distance = torch.where(finished, relative.norm(dim=-1), final_distance)
+            running &= ~finished
+            if not bool(running.any()):
+                break
+            td = step_mdp(td)
+    return EpisodeRecords(
+        initial_aircraft_state=initial.cpu(),
+        outcome=outcome.cpu(),
+        decisions=decisions.cpu(),
+        instructions=instructions.cpu(),
+        episode_return=episode_return.cpu(),
+        final_distance=final_distance.cpu(),
+        trajectory_aircraft=torch.stack(aircraft_path, 1).cpu() if record_trajectories else None,
+        trajectory_destination=torch.stack(destination_path, 1).cpu() if record_trajectories else None,
+    )
+
+
+def wilson_interval(successes: int, trials: int, z: float = 1.959964) -> tuple[float, float]:
+    """95 % Wilson score interval of a binomial proportion."""
+    if trials == 0:
+        return 0.0, 1.0
+    p = successes / trials
+    denominator = 1 + z * z / trials
+    centre = (p + z * z / (2 * trials)) / denominator
+    half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / denominator
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def summarise(records: EpisodeRecords) -> dict[str, float | int | dict]:
+    """Table-3 style summary of :func:`run_episodes`' records."""
+    episodes = int(records.outcome.numel())
+    success = records.outcome == Outcome.SUCCESS
+    successes = int(success.sum())
+    low, high = wilson_interval(successes, episodes)
+
+    def mean(values: torch.Tensor, mask: torch.Tensor | None = None) -> float:
+        values = values.float() if mask is None else values[mask].float()
+        return float(values.mean()) if values.numel() else float("nan")
+
+    return {
+        "episodes": episodes,
+        "success_rate": successes / episodes,
+        "success_rate_ci95": [low, high],
+        "instructions_per_episode": mean(records.instructions),
+        "instructions_per_successful_episode": mean(records.instructions, success),
+        "decisions_per_episode": mean(records.decisions),
+        "decisions_per_successful_episode": mean(records.decisions, success),
+        "mean_return": mean(records.episode_return),
+        "outcomes": {
+            outcome.name.lower(): int((records.outcome == outcome).sum())
+            for outcome in Outcome
+            if outcome is not Outcome.RUNNING
+        },
+    }
+
+
+@torch.no_grad()
+def instruction_latency_ms(env: GuidanceEnv, actor, queries: int = 200) -> float:
+    """Median wall time (ms) to produce one instruction for one aircraft: observation + policy.
+
+    Like the paper's "average computational time" (Table 3), for a single query.
+    """
+    td = env.reset()[:1].clone()
+    timings = []
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        for _ in range(queries + 10):
+            start = time.perf_counter()
+            td["observation"] = env.observe(td)
+            actor(td)
+            timings.append(time.perf_counter() - start)
+    timings = sorted(timings[10:])
+    return 1000.0 * timings[len(timings) // 2]

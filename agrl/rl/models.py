@@ -1,0 +1,45 @@
+"""Actor (7-way categorical policy) and critic networks as TorchRL modules."""
+
+from __future__ import annotations
+
+import torch
+from tensordict.nn import TensorDictModule
+from torch import nn
+from torchrl.modules import MLP, ProbabilisticActor, ValueOperator
+
+from agrl.core.observation import OBSERVATION_SIZE
+from agrl.envs.guidance import NUM_ACTIONS
+
+ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
+
+
+def make_actor(hidden: list[int], activation: str, device: torch.device | str = "cpu") -> ProbabilisticActor:
+    """``observation -> logits -> action`` with ``action_log_prob``; deterministic mode is the argmax."""
+    network = MLP(
+        in_features=OBSERVATION_SIZE, out_features=NUM_ACTIONS, num_cells=list(hidden),
+        activation_class=ACTIVATIONS[activation], device=device,
+    )
+    # Small final layer: the initial policy is close to uniform over the 7 maneuvers.
+    with torch.no_grad():
+        network[-1].weight.mul_(0.01)
+        network[-1].bias.zero_()
+    return ProbabilisticActor(
+        TensorDictModule(network, in_keys=["observation"], out_keys=["logits"]),
+        in_keys=["logits"],
+        out_keys=["action"],
+        distribution_class=torch.distributions.Categorical,
+        return_log_prob=True,
+    )
+
+
+def make_critic(hidden: list[int], activation: str, device: torch.device | str = "cpu") -> ValueOperator:
+    network = MLP(
+        in_features=OBSERVATION_SIZE, out_features=1, num_cells=list(hidden),
+        activation_class=ACTIVATIONS[activation], device=device,
+    )
+    return ValueOperator(network, in_keys=["observation"])
+
+
+def network_signature(module: nn.Module) -> dict[str, list[int]]:
+    """Parameter names and shapes: what a checkpoint must match to be loaded into ``module``."""
+    return {name: list(tensor.shape) for name, tensor in module.state_dict().items()}

@@ -1,0 +1,276 @@
+"""Policy reuse by destination position prediction (the paper's Algorithm 1) as a replay-buffer transform.
+
+When collected data is added to the replay buffer (``rb.extend`` calls
+:meth:`PolicyReuseTransform.inv`), each episode that starts in the batch is,
+with probability ``e``, re-played with the frozen baseline agent B:
+
+1. The destination's trajectory is known: recorded in the batch, and extended
+   past the episode's end by its motion model (constant speed and turn rate).
+2. For every candidate termination step ``t_n`` (a grid over the decision
+   budget) the aircraft is re-simulated from the episode's start. At each step
+   ``n`` the baseline sees the state with the destination fields replaced by the
+   destination's position at ``t_n`` (equation 20), and picks its deterministic
+   action. The step itself is the real environment's transition: the real,
+   moving destination, the real rewards and done flags (Algorithm 1 lines 17-29).
+   A candidate's rollout stops at success, at failure, or one candidate spacing
+   after ``t_n`` (Algorithm 1 runs ``n`` to ``t_n``; the spacing lets consecutive
+   candidates tile the time axis).
+3. If some candidate succeeds, the episode's stored tuples are replaced by the
+   successful re-played episode of the earliest (``keep="earliest"``) or latest
+   ``t_n``; if none does, the agent's own data is kept. ``e`` drops by ``k`` for
+   every selected episode and stops at 0 (Algorithm 1 line 32).
+
+All candidates of all selected episodes run in one batch: a time loop, with
+finished rows dropped as they end, and no Python loop over episodes or
+candidates. Stored tuples carry the real destination fields, so PPO trains the
+new agent on its own task. The transform never writes into its input.
+
+Actions of relabelled rows come from B, not from the policy being trained, so the
+PPO quantities are recomputed for them by ``ppo_targets`` (in the trainer: the
+current policy's log-probability of B's action as the behaviour log-probability,
+values and GAE advantages on the re-played trajectories).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import torch
+from tensordict import TensorDict, TensorDictBase
+from torchrl.envs import ExplorationType, Transform, set_exploration_type
+
+from agrl.core.destinations import DestinationState, move_destination
+from agrl.core.observation import policy_observation
+from agrl.core.termination import Outcome
+from agrl.envs.guidance import STATE_KEYS, GuidanceEnv
+
+#: Entries kept in the buffer for PPO when the transform is active.
+PPO_KEYS = ("observation", "action", "action_log_prob", "state_value", "advantage", "value_target", "relabelled")
+TRAJECTORY_KEY = ("collector", "traj_ids")
+
+
+def candidate_steps(max_decisions: int, stride: int, max_candidates: int) -> torch.Tensor:
+    """The grid of candidate termination steps ``t_n`` in ``[stride, max_decisions]``, at most ``max_candidates``."""
+    grid = torch.arange(stride, max_decisions + 1, stride)
+    if grid.numel() > max_candidates:
+        pick = torch.linspace(0, grid.numel() - 1, max_candidates).round().long().unique()
+        grid = grid[pick]
+    return grid
+
+
+class PolicyReuseTransform(Transform):
+    """Rewrites collected episodes with a frozen baseline actor (Algorithm 1); see the module docstring."""
+
+    def __init__(
+        self,
+        baseline_actor: torch.nn.Module,
+        env: GuidanceEnv,
+        initial_selection_factor: float = 1.0,
+        selection_decay: float = 0.0,
+        candidate_stride: int = 1,
+        max_candidates: int = 64,
+        keep: str = "earliest",
+        ppo_targets: Callable[[TensorDictBase], TensorDictBase] | None = None,
+        max_rows: int | None = None,
+        seed: int = 0,
+    ):
+        super().__init__(in_keys=[], out_keys=[])
+        if keep not in ("earliest", "latest"):
+            raise ValueError(f"keep={keep!r} is not allowed: earliest or latest")
+        self.baseline_actor = baseline_actor.eval().requires_grad_(False)
+        self.env = env
+        self.selection_factor = float(initial_selection_factor)
+        self.selection_decay = float(selection_decay)
+        self.keep = keep
+        self.ppo_targets = ppo_targets
+        self.max_rows = max_rows
+        self.candidates = candidate_steps(env.params.max_decisions, candidate_stride, max_candidates).to(env.device)
+        self.generator = torch.Generator(device=env.device).manual_seed(seed + 7_919)
+        self._statistics: dict[str, float] = {}
+
+    # ------------------------------------------------------------------ state for checkpoints
+    def state_dict(self, *args, **kwargs) -> dict:
+        return {"selection_factor": self.selection_factor, "generator": self.generator.get_state()}
+
+    def load_state_dict(self, state: dict, *args, **kwargs) -> None:
+        self.selection_factor = float(state["selection_factor"])
+        self.generator.set_state(state["generator"])
+
+    def last_statistics(self) -> dict[str, float]:
+        """Dashboard scalars of the last call (``train/reuse_fraction``, ``train/e``, ...)."""
+        return dict(self._statistics)
+
+    # ------------------------------------------------------------------ Transform API
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        return tensordict  # sampling returns stored rows unchanged
+
+    def _call(self, tensordict: TensorDictBase) -> TensorDictBase:
+        return tensordict
+
+    @torch.no_grad()
+    def _inv_call(self, tensordict: TensorDictBase) -> TensorDictBase:
+        return self.relabel(tensordict)
+
+    # ------------------------------------------------------------------ Algorithm 1
+    @torch.no_grad()
+    def relabel(self, rows: TensorDictBase) -> TensorDictBase:
+        """Flat collector rows -> own rows of untouched episodes + re-played rows of relabelled ones."""
+        start_time = time.perf_counter()
+        device = rows.device
+        if rows.batch_dims != 1:
+            raise ValueError(f"PolicyReuseTransform expects flat rows (one batch dimension), got {rows.batch_size}")
+        traj_ids = rows.get(TRAJECTORY_KEY)
+        starts = (rows["step_count"] == 0).nonzero().squeeze(-1)
+        # Episodes starting in this batch, each selected with probability e (line 10-11).
+        selected = torch.rand(starts.numel(), generator=self.generator, device=device) < self.selection_factor
+        starts = starts[selected]
+        episodes = int(starts.numel())
+        self.selection_factor = max(0.0, self.selection_factor - self.selection_decay * episodes)
+
+        relabelled_rows = None
+        succeeded = torch.zeros(episodes, dtype=torch.bool, device=device)
+        if episodes:
+            trajectory, motion = self._destination_prediction(rows, starts, traj_ids)
+            winner_step, winner_index = self._search(rows[starts], trajectory, motion)
+            succeeded = winner_index >= 0
+            if bool(succeeded.any()):
+                relabelled_rows = self._replay(rows[starts[succeeded]], trajectory[succeeded],
+                                               motion[succeeded], winner_step[succeeded], winner_index[succeeded])
+        replaced_ids = traj_ids[starts[succeeded]]
+        keep_own = ~torch.isin(traj_ids, replaced_ids)
+        own = rows[keep_own].select(*[key for key in PPO_KEYS if key != "relabelled"])
+        own["relabelled"] = torch.zeros(own.batch_size, dtype=torch.bool, device=device)
+        output = own if relabelled_rows is None else torch.cat([own, relabelled_rows], 0)
+        if self.max_rows is not None and output.numel() > self.max_rows:
+            output = output[: self.max_rows]  # drops the tail of the re-played rows only
+        relabelled_count = 0 if relabelled_rows is None else relabelled_rows.numel()
+        self._statistics = {
+            "train/e": self.selection_factor,
+            "train/reuse_fraction": relabelled_count / max(output.numel(), 1),
+            "train/reuse_episodes_selected": episodes,
+            "train/reuse_episodes_relabelled": int(succeeded.sum()),
+            "time/reuse_relabel_seconds": time.perf_counter() - start_time,
+        }
+        return output
+
+    def _destination_prediction(
+        self, rows: TensorDictBase, starts: torch.Tensor, traj_ids: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Destination state at every decision 0..budget for each selected episode, and its motion per step.
+
+        Returns ``trajectory (E, budget + 1, 4)`` and ``motion (E, budget, 2)`` (speed m/s, turn rate rad/s).
+        Rows of one episode are contiguous in the collector's flat (env-major) layout.
+        """
+        budget = self.env.params.max_decisions
+        count = rows.numel()
+        steps = torch.arange(budget, device=rows.device)
+        index = (starts[:, None] + steps[None, :]).clamp(max=count - 1)
+        recorded = (traj_ids[index] == traj_ids[starts][:, None]) & (starts[:, None] + steps[None, :] < count)
+        length = recorded.sum(-1)  # transitions of each episode inside the batch
+        next_rows = rows["next"]
+        motion = torch.stack((next_rows["destination_speed"][index], next_rows["destination_turn_rate"][index]), -1)
+        last_motion = motion.gather(1, (length - 1).clamp(min=0)[:, None, None].expand(-1, 1, 2))
+        motion = torch.where(recorded[..., None], motion, last_motion)
+
+        states = [rows["destination_state"][starts]]
+        after = next_rows["destination_state"][index]
+        airspace = self.env.params.simulation.airspace
+        period = self.env.params.simulation.decision_period
+        for step in range(budget):
+            # Recorded positions where known; beyond the episode's end, the motion model (one exact arc per decision).
+            predicted = move_destination(
+                DestinationState.from_tensor(states[-1]), motion[:, step, 0], motion[:, step, 1], period,
+                (airspace.x_min, airspace.x_max), (airspace.y_min, airspace.y_max),
+            ).to_tensor()
+            states.append(torch.where(recorded[:, step, None], after[:, step], predicted))
+        return torch.stack(states, 1), motion
+
+    def _baseline_actions(self, state: TensorDictBase, predicted_destination: torch.Tensor) -> torch.Tensor:
+        """B's deterministic action on the state whose destination fields are the prediction (equation 20)."""
+        simulation = self.env.params.simulation
+        observation = policy_observation(
+            state["aircraft_state"], predicted_destination, state["last_action"], simulation.airspace,
+            simulation.limits,
+        )
+        query = TensorDict({"observation": observation}, batch_size=state.batch_size, device=state.device)
+        with set_exploration_type(ExplorationType.DETERMINISTIC):
+            return self.baseline_actor(query)["action"]
+
+    def _search(
+        self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Roll out every (episode, t_n) candidate at once; return the kept candidate's arrival step and index.
+
+        ``winner_index`` is -1 for episodes where no candidate succeeded.
+        """
+        device = trajectory.device
+        episodes, candidates = trajectory.shape[0], self.candidates.numel()
+        spacing = int(self.candidates[1] - self.candidates[0]) if candidates > 1 else 1
+        episode = torch.arange(episodes, device=device).repeat_interleave(candidates)
+        candidate = torch.arange(candidates, device=device).repeat(episodes)
+        target_step = self.candidates[candidate]
+        limit = (target_step + spacing).clamp(max=self.env.params.max_decisions)
+        predicted = trajectory[episode, target_step]
+        state = _initial_state(start_rows, episode)
+        # The kept candidate per episode: index into the grid (earliest = smallest, latest = largest).
+        sentinel = candidates if self.keep == "earliest" else -1
+        best = torch.full((episodes,), sentinel, dtype=torch.long, device=device)
+        arrival = torch.zeros(episodes * candidates, dtype=torch.long, device=device)
+        alive = torch.arange(episodes * candidates, device=device)
+        for step in range(self.env.params.max_decisions):
+            if alive.numel() == 0:
+                break
+            state["action"] = self._baseline_actions(state, predicted[alive])
+            index = episode[alive]
+            state = self.env.transition(state, motion[index, step, 0], motion[index, step, 1])
+            success = state["outcome"] == Outcome.SUCCESS
+            if bool(success.any()):
+                arrival[alive[success]] = step + 1
+                reduce = "amin" if self.keep == "earliest" else "amax"
+                best.scatter_reduce_(0, index[success], candidate[alive][success], reduce=reduce)
+            running = (state["outcome"] == Outcome.RUNNING) & (step + 1 < limit[alive])
+            if self.keep == "earliest":
+                # A candidate later than an episode's earliest success can no longer be the one kept.
+                running &= candidate[alive] < best[index]
+            alive = alive[running]
+            state = state[running].exclude("reward", "done", "terminated", "outcome")
+        found = (best >= 0) & (best < candidates)
+        winner_index = torch.where(found, best, -1)
+        winner_row = torch.arange(episodes, device=device) * candidates + winner_index.clamp(min=0)
+        return torch.where(found, arrival[winner_row], 0), winner_index
+
+    def _replay(
+        self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor,
+        arrival: torch.Tensor, winner_index: torch.Tensor,
+    ) -> TensorDictBase:
+        """Re-play the kept candidates, recording full transitions; return flat PPO rows."""
+        episodes = start_rows.numel()
+        device = trajectory.device
+        rows_index = torch.arange(episodes, device=device)
+        predicted = trajectory[rows_index, self.candidates[winner_index]]
+        state = _initial_state(start_rows, rows_index)
+        state["observation"] = self.env.observe(state)
+        length = int(arrival.max())
+        steps = []
+        for step in range(length):
+            state["action"] = self._baseline_actions(state, predicted)
+            next_state = self.env.transition(state, motion[:, step, 0], motion[:, step, 1])
+            steps.append(state.clone().set("next", next_state))
+            state = next_state.exclude("reward", "done", "terminated", "outcome")
+        trajectories = torch.stack(steps, 1)  # (episodes, length)
+        valid = torch.arange(length, device=device)[None, :] < arrival[:, None]
+        # Rows past an episode's success are padding: mark them terminal so GAE does not mix them in.
+        trajectories["next", "done"] = trajectories["next", "done"] | ~valid[..., None]
+        trajectories["next", "terminated"] = trajectories["next", "terminated"] | ~valid[..., None]
+        if self.ppo_targets is not None:
+            trajectories = self.ppo_targets(trajectories)
+        flat = trajectories[valid]
+        flat["relabelled"] = torch.ones(flat.batch_size, dtype=torch.bool, device=device)
+        return flat.select(*[key for key in PPO_KEYS if key in flat.keys()])
+
+
+def _initial_state(start_rows: TensorDictBase, index: torch.Tensor) -> TensorDictBase:
+    """Episode-start states (the paper's S_0) for the rows ``index`` of ``start_rows``, as env state entries."""
+    state = start_rows.select(*STATE_KEYS)[index].clone()
+    return state

@@ -1,0 +1,77 @@
+"""``python -m agrl.train``: train a guidance agent (Hydra entry point).
+
+Examples::
+
+    python -m agrl.train                                   # fixed destination, PPO with both shaping terms
+    python -m agrl.train task=uniform speed=50 method=reuse
+    python -m agrl.train reward=none seed=2 ppo.max_minutes=10
+    python -m agrl.train resume=runs/fixed/scratch/<date>_seed0 ppo.total_frames=20000000
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from pathlib import Path
+
+import hydra
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import DictConfig, OmegaConf
+
+from agrl.config import ConfigError, load_config
+from agrl.rl.checkpoint import CheckpointError, load_checkpoint, resolve_checkpoint_path
+
+log = logging.getLogger("agrl.train")
+
+#: Values a resumed run may take from the command line; all else comes from the checkpoint.
+RESUMABLE_OVERRIDES = ("ppo.total_frames", "ppo.max_minutes", "target_success", "progress", "device",
+                       "checkpoint_interval", "eval.")
+
+
+def _resume_config(cfg: DictConfig, reference: str) -> tuple[DictConfig, dict, Path]:
+    path = resolve_checkpoint_path(reference)
+    payload = load_checkpoint(path, required=("actor", "critic", "optimizer", "counters", "carrier", "rng", "config"))
+    payload["_path"] = str(path)
+    saved = OmegaConf.merge(OmegaConf.structured(type(load_config(cfg))), payload["config"])
+    overrides = [o for o in HydraConfig.get().overrides.task if o.split("=")[0].lstrip("+~").startswith(RESUMABLE_OVERRIDES)]
+    saved = OmegaConf.merge(saved, OmegaConf.from_dotlist(overrides))
+    saved.resume = str(reference)
+    return saved, payload, Path(payload.get("run_dir") or path.parent.parent)
+
+
+def run(cfg: DictConfig) -> dict:
+    from agrl.rl.trainer import Trainer  # heavy imports after argument checks
+
+    payload = None
+    run_dir = Path(HydraConfig.get().runtime.output_dir)
+    if cfg.get("resume"):
+        cfg, payload, run_dir = _resume_config(cfg, cfg.resume)
+    config = load_config(cfg)
+    trainer = Trainer(config, run_dir, resume_payload=payload)
+    log.info("run directory: %s (tensorboard --logdir %s)", run_dir, run_dir)
+    summary = trainer.train()
+    return summary
+
+
+@hydra.main(version_base="1.3", config_path="../conf", config_name="config")
+def main(cfg: DictConfig) -> None:
+    try:
+        summary = run(cfg)
+    except (ConfigError, CheckpointError) as error:
+        print(f"agrl.train: error: {error}", file=sys.stderr)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        sys.exit(130)
+    except Exception as error:
+        from agrl.rl.trainer import TrainingDiverged
+
+        if isinstance(error, TrainingDiverged):
+            print(f"agrl.train: error: {error}", file=sys.stderr)
+            sys.exit(3)
+        raise
+    print(json.dumps(summary))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,133 @@
+"""The policy input: size, finiteness, invariances of the relative features, last-action one-hot."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from agrl.core.aircraft import MANEUVER_NAMES, AircraftLimits
+from agrl.core.observation import OBSERVATION_FEATURES, OBSERVATION_SIZE, policy_observation
+from agrl.core.termination import Airspace
+
+AIRSPACE = Airspace()
+LIMITS = AircraftLimits()
+INDEX = {name: i for i, name in enumerate(OBSERVATION_FEATURES)}
+ABSOLUTE_XY = [INDEX["x"], INDEX["y"]]
+NUM_ACTIONS = len(MANEUVER_NAMES)
+
+
+def random_inputs(count: int, seed: int):
+    generator = torch.Generator().manual_seed(seed)
+    u = lambda *shape: torch.rand(*shape, generator=generator, dtype=torch.float64)  # noqa: E731
+    aircraft = torch.stack(
+        (
+            u(count) * 16_000 - 8_000,
+            u(count) * 16_000 - 8_000,
+            u(count) * 5_000,
+            100 + 150 * u(count),
+            (u(count) * 2 - 1) * LIMITS.max_flight_path_angle,
+            (u(count) * 2 - 1) * math.pi,
+            (u(count) * 2 - 1) * 1.2,
+        ),
+        dim=-1,
+    )
+    destination = torch.stack(
+        (u(count) * 16_000 - 8_000, u(count) * 16_000 - 8_000, u(count) * 5_000, (u(count) * 2 - 1) * math.pi),
+        dim=-1,
+    )
+    last_action = torch.randint(0, NUM_ACTIONS, (count,), generator=generator)
+    return aircraft, destination, last_action
+
+
+def observe(aircraft, destination, last_action):
+    return policy_observation(aircraft, destination, last_action, AIRSPACE, LIMITS)
+
+
+def other_columns(exclude):
+    return [i for i in range(OBSERVATION_SIZE) if i not in exclude]
+
+
+def test_shape_and_finite():
+    aircraft, destination, last_action = random_inputs(64, seed=0)
+    obs = observe(aircraft, destination, last_action)
+    assert obs.shape == (64, OBSERVATION_SIZE)
+    assert OBSERVATION_SIZE == len(OBSERVATION_FEATURES) == 14 + NUM_ACTIONS
+    assert torch.isfinite(obs).all()
+    # Batch shapes are preserved.
+    obs2 = observe(aircraft.reshape(4, 16, 7), destination.reshape(4, 16, 4), last_action.reshape(4, 16))
+    assert obs2.shape == (4, 16, OBSERVATION_SIZE)
+    torch.testing.assert_close(obs2.reshape(64, -1), obs)
+
+
+def test_finite_when_aircraft_is_on_the_destination():
+    aircraft = torch.tensor([[0.0, 0.0, 0.0, 100.0, 0.0, 0.0, 0.0]])
+    destination = torch.zeros(1, 4)
+    obs = observe(aircraft, destination, torch.zeros(1, dtype=torch.int64))
+    assert torch.isfinite(obs).all()
+
+
+def test_invariant_to_horizontal_translation():
+    aircraft, destination, last_action = random_inputs(32, seed=1)
+    obs = observe(aircraft, destination, last_action)
+    shift = torch.tensor([1_234.5, -2_345.6], dtype=torch.float64)
+    moved_aircraft, moved_destination = aircraft.clone(), destination.clone()
+    moved_aircraft[:, :2] += shift
+    moved_destination[:, :2] += shift
+    moved = observe(moved_aircraft, moved_destination, last_action)
+    keep = other_columns(ABSOLUTE_XY)
+    torch.testing.assert_close(moved[:, keep], obs[:, keep], rtol=0, atol=1e-9)
+    # The absolute position features do see the shift (x maps 20 km to 2 units).
+    expected_dx = 2 * shift[0] / (AIRSPACE.x_max - AIRSPACE.x_min)
+    torch.testing.assert_close(moved[:, INDEX["x"]] - obs[:, INDEX["x"]], expected_dx.expand(32), rtol=0,
+                               atol=1e-9)
+
+
+def test_invariant_to_rotation():
+    aircraft, destination, last_action = random_inputs(32, seed=2)
+    obs = observe(aircraft, destination, last_action)
+    for angle in (0.3, -2.0, math.pi):
+        c, s = math.cos(angle), math.sin(angle)
+        rotated_aircraft, rotated_destination = aircraft.clone(), destination.clone()
+        for tensor, heading_index in ((rotated_aircraft, 5), (rotated_destination, 3)):
+            x, y = tensor[:, 0].clone(), tensor[:, 1].clone()
+            tensor[:, 0] = c * x - s * y
+            tensor[:, 1] = s * x + c * y
+            tensor[:, heading_index] += angle
+        rotated = observe(rotated_aircraft, rotated_destination, last_action)
+        keep = other_columns(ABSOLUTE_XY)
+        torch.testing.assert_close(rotated[:, keep], obs[:, keep], rtol=0, atol=1e-9)
+
+
+def test_last_action_one_hot():
+    aircraft, destination, _ = random_inputs(NUM_ACTIONS, seed=3)
+    last_action = torch.arange(NUM_ACTIONS)
+    obs = observe(aircraft, destination, last_action)
+    one_hot = obs[:, -NUM_ACTIONS:]
+    assert torch.equal(one_hot, torch.eye(NUM_ACTIONS, dtype=obs.dtype))
+    for name in MANEUVER_NAMES:
+        assert INDEX[f"last_action_{name}"] >= OBSERVATION_SIZE - NUM_ACTIONS
+
+
+def test_geometry_features():
+    # Destination 3 km straight ahead (aircraft heading +y), same altitude and heading, aircraft behind it.
+    aircraft = torch.tensor([[0.0, -3_000.0, 1_000.0, 175.0, 0.0, math.pi / 2, 0.0]], dtype=torch.float64)
+    destination = torch.tensor([[0.0, 0.0, 1_000.0, math.pi / 2]], dtype=torch.float64)
+    obs = observe(aircraft, destination, torch.zeros(1, dtype=torch.int64))[0]
+    half_width = 10_000.0
+    assert float(obs[INDEX["horizontal_distance"]]) == pytest.approx(3_000.0 / half_width)
+    assert float(obs[INDEX["bearing_sin"]]) == pytest.approx(0.0, abs=1e-9)
+    assert float(obs[INDEX["bearing_cos"]]) == pytest.approx(1.0)
+    assert float(obs[INDEX["heading_difference_cos"]]) == pytest.approx(1.0)
+    assert float(obs[INDEX["altitude_difference"]]) == pytest.approx(0.0, abs=1e-12)
+    assert float(obs[INDEX["speed"]]) == pytest.approx(0.0, abs=1e-12)  # mid-range speed
+    assert float(obs[INDEX["altitude"]]) == pytest.approx(-0.6)  # 1000 m of [0, 5000]
+    # The destination to the left (+x side when heading +y is to the right): bearing sign.
+    right = torch.tensor([[1_000.0, 0.0, 1_000.0, math.pi / 2]], dtype=torch.float64)
+    left = torch.tensor([[-1_000.0, 0.0, 1_000.0, math.pi / 2]], dtype=torch.float64)
+    at_origin = torch.tensor([[0.0, 0.0, 1_000.0, 175.0, 0.0, math.pi / 2, 0.0]], dtype=torch.float64)
+    zero_action = torch.zeros(1, dtype=torch.int64)
+    # psi grows towards +y from +x: a destination at +psi relative bearing (here -x) has sin > 0.
+    assert float(observe(at_origin, left, zero_action)[0, INDEX["bearing_sin"]]) == pytest.approx(1.0)
+    assert float(observe(at_origin, right, zero_action)[0, INDEX["bearing_sin"]]) == pytest.approx(-1.0)

@@ -1,0 +1,210 @@
+"""Reward (equations 5-11): terms, switches and the telescoping of the potential-based shaping."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from agrl.core.reward import (
+    RewardParameters,
+    continuous_action_potential,
+    position_potential,
+    potential,
+    shaping_reward,
+    step_reward,
+    termination_reward,
+)
+from agrl.core.termination import Outcome
+from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
+from agrl.envs.parameters import DestinationMotion
+
+CUSTOM = RewardParameters(
+    success=7.0, out_of_airspace=-3.0, budget_exhausted=-2.0, action_change=-0.3, action_hold=-0.02,
+    distance_weight=2e-4, heading_weight=0.7, altitude_weight=3e-5, gamma=0.9,
+)
+
+
+def hand_position_potential(aircraft, destination, params: RewardParameters) -> float:
+    ax, ay, az, _, _, apsi, _ = (float(v) for v in aircraft)
+    dx, dy, dz, dpsi = (float(v) for v in destination)
+    return (
+        -params.distance_weight * math.sqrt((ax - dx) ** 2 + (ay - dy) ** 2)
+        + params.heading_weight * math.cos(apsi - dpsi)
+        - params.altitude_weight * abs(az - dz)
+    )
+
+
+def hand_potential(aircraft, destination, last_action, action_before_last, params: RewardParameters) -> float:
+    value = 0.0
+    if params.use_continuous_action:
+        value += params.action_change if int(last_action) != int(action_before_last) else params.action_hold
+    if params.use_position:
+        value += hand_position_potential(aircraft, destination, params)
+    return value
+
+
+def random_states(count: int, seed: int):
+    generator = torch.Generator().manual_seed(seed)
+    aircraft = torch.rand(count, 7, generator=generator, dtype=torch.float64)
+    aircraft[:, :2] = aircraft[:, :2] * 20_000 - 10_000
+    aircraft[:, 2] *= 5_000
+    aircraft[:, 5] = aircraft[:, 5] * 20 - 10  # unwrapped headings
+    destination = torch.rand(count, 4, generator=generator, dtype=torch.float64)
+    destination[:, :2] = destination[:, :2] * 20_000 - 10_000
+    destination[:, 2] *= 5_000
+    destination[:, 3] = destination[:, 3] * 2 * math.pi - math.pi
+    return aircraft, destination
+
+
+def test_termination_reward_values():
+    outcome = torch.tensor([Outcome.RUNNING, Outcome.SUCCESS, Outcome.OUT_OF_AIRSPACE, Outcome.BUDGET_EXHAUSTED])
+    assert termination_reward(outcome, CUSTOM).tolist() == [0.0, 7.0, -3.0, -2.0]
+    default = RewardParameters()
+    assert termination_reward(outcome, default).tolist() == [0.0, 20.0, -20.0, -10.0]  # Table 2
+
+
+def test_continuous_action_potential():
+    last = torch.tensor([0, 1, 2, 6, 3])
+    before = torch.tensor([0, 2, 2, 5, 3])
+    got = continuous_action_potential(last, before, CUSTOM)
+    assert got.tolist() == pytest.approx([-0.02, -0.3, -0.02, -0.3, -0.02])
+
+
+def test_position_potential_against_hand_computation():
+    aircraft, destination = random_states(16, seed=5)
+    got = position_potential(aircraft, destination, CUSTOM)
+    for i in range(16):
+        assert float(got[i]) == pytest.approx(hand_position_potential(aircraft[i], destination[i], CUSTOM),
+                                              rel=1e-9, abs=1e-12)
+
+
+def test_position_potential_terms():
+    params = RewardParameters()
+    dest = torch.tensor([0.0, 0.0, 0.0, 0.0])
+    # 3-4-5 triangle (5 km), 1 km above, same heading: -0.5 + 0.5 - 0.01.
+    on_track = position_potential(torch.tensor([3_000.0, 4_000.0, 1_000.0, 200.0, 0.0, 0.0, 0.0]), dest, params)
+    assert float(on_track) == pytest.approx(-0.5 + 0.5 - 0.01, abs=1e-6)
+    # Opposite heading costs 2 * c7, closer is better.
+    reverse = position_potential(torch.tensor([3_000.0, 4_000.0, 1_000.0, 200.0, 0.0, math.pi, 0.0]), dest, params)
+    assert float(on_track - reverse) == pytest.approx(2 * params.heading_weight, abs=1e-6)
+    closer = position_potential(torch.tensor([300.0, 400.0, 1_000.0, 200.0, 0.0, 0.0, 0.0]), dest, params)
+    assert float(closer) > float(on_track)
+
+
+def test_potential_switches_and_terminal():
+    aircraft, destination = random_states(8, seed=9)
+    last = torch.tensor([0, 1, 1, 2, 3, 4, 5, 6])
+    before = torch.tensor([0, 0, 1, 2, 4, 4, 6, 6])
+    not_terminal = torch.zeros(8, dtype=torch.bool)
+    for use_c in (True, False):
+        for use_p in (True, False):
+            params = RewardParameters(use_continuous_action=use_c, use_position=use_p)
+            got = potential(aircraft, destination, last, before, not_terminal, params)
+            expected = [hand_potential(aircraft[i], destination[i], last[i], before[i], params) for i in range(8)]
+            assert got.tolist() == pytest.approx(expected, rel=1e-6, abs=1e-6)
+            if not use_c and not use_p:
+                assert got.tolist() == [0.0] * 8
+    terminal = torch.tensor([True, False] * 4)
+    got = potential(aircraft, destination, last, before, terminal, RewardParameters())
+    assert got[terminal].tolist() == [0.0] * 4
+    assert all(v != 0.0 for v in got[~terminal].tolist())
+
+
+def test_shaping_and_step_reward():
+    before = torch.tensor([1.0, -2.0, 0.5])
+    after = torch.tensor([0.5, -1.0, 0.0])
+    shaping = shaping_reward(before, after, CUSTOM)
+    assert shaping.tolist() == pytest.approx([0.9 * 0.5 - 1.0, 0.9 * -1.0 + 2.0, -0.5])
+    outcome = torch.tensor([Outcome.RUNNING, Outcome.RUNNING, Outcome.SUCCESS])
+    total = step_reward(outcome, before, after, CUSTOM)
+    assert total.tolist() == pytest.approx([0.9 * 0.5 - 1.0, 0.9 * -1.0 + 2.0, 7.0 - 0.5])
+
+
+def run_episodes(params: GuidanceParameters, num_envs: int, seed: int):
+    """Random policy until every row has finished; per row: initial state, steps up to the first done."""
+    env = GuidanceEnv(params, num_envs=num_envs, seed=seed)
+    generator = torch.Generator().manual_seed(seed)
+    td = env.reset()
+    start = td.clone()
+    records = []
+    finished = torch.zeros(num_envs, dtype=torch.bool)
+    for _ in range(params.max_decisions):
+        td["action"] = torch.randint(0, 7, (num_envs,), generator=generator)
+        td = env.step(td)
+        records.append(td["next"].clone())
+        finished |= td["next", "done"].squeeze(-1)
+        if bool(finished.all()):
+            break
+        td = env.step_mdp(td)
+    assert bool(finished.all())
+    return start, records
+
+
+@pytest.mark.parametrize(
+    "kind,reward",
+    [
+        (MotionKind.FIXED, RewardParameters()),
+        (MotionKind.CURVED, RewardParameters(gamma=0.9, use_continuous_action=True, use_position=True)),
+    ],
+)
+def test_shaping_telescopes_over_an_episode(kind, reward):
+    destination = DestinationMotion(kind=kind, speed=20.0, radius=1_000.0)
+    params = GuidanceParameters(max_decisions=12, reward=reward, destination=destination)
+    num_envs = 4
+    start, records = run_episodes(params, num_envs, seed=11)
+    gamma = reward.gamma
+    outcomes_seen = set()
+    for row in range(num_envs):
+        phi0 = hand_potential(start["aircraft_state"][row], start["destination_state"][row],
+                              start["last_action"][row], start["action_before_last"][row], reward)
+        shaped_sum = 0.0  # float64 accumulation
+        for t, nxt in enumerate(records):
+            outcome = int(nxt["outcome"][row])
+            terminal_reward = float(termination_reward(torch.tensor(outcome), reward))
+            shaped_sum += gamma**t * (float(nxt["reward"][row, 0]) - terminal_reward)
+            if bool(nxt["done"][row, 0]):
+                outcomes_seen.add(outcome)
+                assert outcome != Outcome.RUNNING
+                # Phi(terminal) = 0: sum_t gamma^t F_t = -Phi(S_0).
+                assert shaped_sum == pytest.approx(-phi0, abs=1e-4)
+                break
+            # Before the end, each prefix telescopes to gamma^(t+1) Phi(S_{t+1}) - Phi(S_0).
+            phi_next = hand_potential(nxt["aircraft_state"][row], nxt["destination_state"][row],
+                                      nxt["last_action"][row], nxt["action_before_last"][row], reward)
+            assert shaped_sum == pytest.approx(gamma ** (t + 1) * phi_next - phi0, abs=1e-4)
+        else:
+            pytest.fail(f"row {row} never finished")
+    assert outcomes_seen  # at least one terminal kind observed
+
+
+def test_env_reward_switches():
+    start = torch.tensor([-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0])
+    actions = [0, 3, 3, 1]  # hold, change, hold, change
+
+    def rewards(reward_params):
+        env = GuidanceEnv(GuidanceParameters(reward=reward_params), num_envs=1, seed=0)
+        td = env.reset(env.scenario(aircraft_state=start))
+        out = []
+        for action in actions:
+            td["action"] = torch.tensor([action])
+            td = env.step(td)
+            assert td["next", "outcome"].tolist() == [Outcome.RUNNING]
+            out.append(float(td["next", "reward"]))
+            td = env.step_mdp(td)
+        return out
+
+    gamma = 0.99
+    off = rewards(RewardParameters(use_continuous_action=False, use_position=False))
+    assert off == [0.0] * len(actions)
+    c4, c5 = -0.1, -0.01
+    only_c = rewards(RewardParameters(use_continuous_action=True, use_position=False))
+    # C(S_0) = c5 (no previous change); C(S_{t+1}) is c4 if A_t != A_{t-1}.
+    expected_c = [gamma * c5 - c5, gamma * c4 - c5, gamma * c5 - c4, gamma * c4 - c5]
+    assert only_c == pytest.approx(expected_c, abs=1e-6)
+    only_p = rewards(RewardParameters(use_continuous_action=False, use_position=True))
+    both = rewards(RewardParameters())
+    assert both == pytest.approx([c + p for c, p in zip(only_c, only_p, strict=True)], abs=1e-5)
+    # Flying towards the destination: the position shaping is positive on the first (steady) step.
+    assert only_p[0] > 0

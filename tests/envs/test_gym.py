@@ -1,0 +1,249 @@
+"""The gymnasium API: ``gymnasium.make("agrl/Guidance-v0", ...)`` (agrl/envs/gym.py).
+
+Each eager decision is 150 integration steps (tens of ms), so these tests take few steps.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import subprocess
+import sys
+import warnings
+from importlib.metadata import version
+from pathlib import Path
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from hydra import compose, initialize_config_dir
+
+import agrl
+from agrl.config import load_config, to_guidance_parameters
+from agrl.core.observation import OBSERVATION_SIZE, policy_observation
+from agrl.core.reward import RewardParameters
+from agrl.envs.gym import ENV_ID, GuidanceGymEnv, guidance_parameters
+
+CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+
+TASKS = [
+    {"task": "uniform", "speed": 50.0},
+    {"task": "curved", "radius": 500.0},
+    {"task": "fixed"},
+    {"task": "irregular"},
+]
+
+
+def _make(**kwargs) -> gymnasium.Env:
+    return gymnasium.make(ENV_ID, **kwargs)
+
+
+# ---------------------------------------------------------------------------- registration
+def test_import_registers_the_env_and_is_light():
+    assert ENV_ID == agrl.GYM_ENV_ID == "agrl/Guidance-v0"
+    assert ENV_ID in gymnasium.registry
+    assert agrl.__version__ == version("agrl")
+    # Registering again (a second import, a reload) must not fail or warn.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        agrl._register_gym_env()
+        importlib.reload(agrl)
+    assert ENV_ID in gymnasium.registry
+    # `import agrl` does not pull in torch (the env is built lazily by gymnasium.make).
+    code = "import sys, agrl, gymnasium; assert 'torch' not in sys.modules; print(gymnasium.spec('agrl/Guidance-v0').id)"
+    output = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert output.strip() == ENV_ID
+
+
+# ---------------------------------------------------------------------------- conformance
+@pytest.mark.parametrize("kwargs", TASKS, ids=lambda kwargs: kwargs["task"])
+def test_spaces_and_env_checker(kwargs):
+    env = _make(**kwargs)
+    assert env.action_space == gymnasium.spaces.Discrete(7)
+    space = env.observation_space
+    assert isinstance(space, gymnasium.spaces.Box)
+    assert space.dtype == np.float32 and space.shape == (OBSERVATION_SIZE,)
+    assert np.all(np.isfinite(space.low)) and np.all(np.isfinite(space.high))
+    unwrapped = env.unwrapped
+    assert isinstance(unwrapped, GuidanceGymEnv)
+    assert unwrapped.env.batch_size == (1,) and not unwrapped.env.simulator.compiled
+    assert unwrapped.params.destination.kind.value == kwargs["task"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # gymnasium's checker reports problems as warnings
+        check_env(unwrapped)
+    env.close()
+
+
+def test_task_kwargs_reach_the_simulation():
+    curved = _make(task="curved", speed=30.0, radius=500.0, turn_direction=-1).unwrapped.params
+    assert curved.destination.speed == 30.0 and curved.destination.radius == 500.0
+    assert curved.destination.turn_direction == -1.0
+    assert _make(task="curved").unwrapped.params.destination.speed == 20.0  # conf/task/curved.yaml
+    assert _make(task="uniform").unwrapped.params.destination.speed == 50.0  # conf/task/uniform.yaml
+    assert _make(max_decisions=7).unwrapped.params.max_decisions == 7
+    plain = _make(reward="none").unwrapped.params.reward
+    assert not plain.use_continuous_action and not plain.use_position
+    # compile=True is passed through (compilation itself is lazy: nothing is compiled until a step).
+    compiled = _make(compile=True).unwrapped
+    assert compiled.params.compile and compiled.env.simulator.compiled
+
+
+@pytest.mark.parametrize("task", ["fixed", "uniform", "curved", "irregular"])
+@pytest.mark.parametrize("reward", ["none", "continuous", "position", "both"])
+def test_parameters_equal_the_training_defaults(task, reward):
+    """The gym env builds exactly what `python -m agrl.train task=... reward=...` builds (conf/)."""
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        cfg = load_config(compose(config_name="config", overrides=[f"task={task}", f"reward={reward}"]))
+    expected = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, compile=False)
+    assert guidance_parameters(task=task, reward=reward) == expected
+
+
+# ---------------------------------------------------------------------------- other libraries can train on it
+def test_random_policy_loop_through_gymnasium_make():
+    """What any gymnasium-based library does: make, reset(seed), step until done, reset again."""
+    env = _make(task="uniform", speed=50.0, max_decisions=4)
+    check_env(env.unwrapped)
+    env.action_space.seed(0)
+    observation, info = env.reset(seed=0)
+    episodes, steps, episode_return = 0, 0, 0.0
+    while episodes < 3:
+        action = env.action_space.sample()
+        observation, reward, terminated, truncated, info = env.step(action)
+        steps += 1
+        assert observation in env.observation_space
+        assert isinstance(reward, float) and math.isfinite(reward)
+        assert isinstance(terminated, bool) and truncated is False
+        assert set(info) >= {"outcome", "aircraft_state", "destination_state"}
+        assert info["aircraft_state"].shape == (7,) and info["destination_state"].shape == (4,)
+        episode_return += reward
+        if terminated:
+            assert info["outcome"] in ("success", "out_of_airspace", "budget_exhausted")
+            assert info["episode_return"] == pytest.approx(episode_return, rel=1e-4, abs=1e-4)
+            episodes, episode_return = episodes + 1, 0.0
+            observation, info = env.reset()
+            assert info["outcome"] == "running" and info["step_count"] == 0
+        else:
+            assert info["outcome"] == "running"
+    assert steps <= 12
+    env.close()
+
+
+def test_vector_env_and_wrappers():
+    envs = gymnasium.make_vec(ENV_ID, num_envs=2, vectorization_mode="sync", task="fixed", max_decisions=2)
+    envs = gymnasium.wrappers.vector.RecordEpisodeStatistics(envs)
+    observations, _ = envs.reset(seed=3)
+    assert observations.shape == (2, OBSERVATION_SIZE) and observations.dtype == np.float32
+    envs.action_space.seed(3)
+    finished = 0
+    for _ in range(3):
+        observations, rewards, terminated, truncated, infos = envs.step(envs.action_space.sample())
+        assert observations.shape == (2, OBSERVATION_SIZE) and rewards.shape == (2,)
+        assert not truncated.any()
+        finished += int(terminated.sum())
+    assert finished == 2  # both end at the 2-decision budget (or earlier)
+    envs.close()
+
+
+# ---------------------------------------------------------------------------- the MDP
+def test_budget_terminates_with_c3():
+    env = _make(task="fixed", max_decisions=3, reward="none")
+    env.reset(seed=5)
+    rewards = []
+    for _ in range(3):
+        _, reward, terminated, truncated, info = env.step(0)  # steady flight
+        rewards.append(reward)
+    assert terminated and not truncated
+    assert info["outcome"] == "budget_exhausted" and info["step_count"] == 3
+    assert rewards == [0.0, 0.0, RewardParameters().budget_exhausted]  # equation 6's c3, no shaping
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(0)  # the episode is over
+
+
+def test_leaving_the_airspace_is_terminal_and_the_last_observation_is_in_bounds():
+    env = _make(task="fixed", reward="none").unwrapped
+    seed = next(s for s in range(100) if env.reset(seed=s)[1]["aircraft_state"][2] < 1_200.0)  # low start
+    observation, info = env.reset(seed=seed)
+    for _ in range(12):
+        observation, reward, terminated, _, info = env.step(6)  # push over into the ground
+        assert observation in env.observation_space
+        if terminated:
+            break
+    assert terminated and info["outcome"] == "out_of_airspace"
+    assert reward == RewardParameters().out_of_airspace
+    assert info["aircraft_state"][2] < 0.0
+
+
+def test_observation_is_the_torchrl_observation_of_the_info_state():
+    env = _make(task="curved", radius=500.0).unwrapped
+    env.reset(seed=11)
+    observation, _, _, _, info = env.step(2)
+    import torch
+
+    simulation = env.params.simulation
+    expected = policy_observation(
+        torch.from_numpy(info["aircraft_state"]), torch.from_numpy(info["destination_state"]),
+        torch.tensor(2), simulation.airspace, simulation.limits,
+    )
+    np.testing.assert_allclose(observation, expected.numpy(), rtol=1e-6, atol=1e-6)
+
+
+def test_seeding_is_reproducible():
+    def trajectory(seed: int, task: str = "irregular") -> list[np.ndarray]:
+        env = _make(task=task)
+        observation, _ = env.reset(seed=seed)
+        observations = [observation]
+        for action in (1, 3, 5):
+            observations.append(env.step(action)[0])
+        return observations
+
+    first, second = trajectory(7), trajectory(7)
+    for a, b in zip(first, second, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(trajectory(8)[0], first[0])
+
+
+def test_returned_data_is_fresh():
+    env = _make(task="fixed")
+    observation, info = env.reset(seed=0)
+    following, _, _, _, next_info = env.step(0)
+    assert not np.shares_memory(observation, following)
+    assert not np.shares_memory(info["aircraft_state"], next_info["aircraft_state"])
+
+
+# ---------------------------------------------------------------------------- errors
+@pytest.mark.parametrize(
+    ("kwargs", "fragment"),
+    [
+        ({"task": "circle"}, "task='circle' is not allowed: one of fixed, uniform, curved, irregular"),
+        ({"task": "uniform", "speed": -5.0}, "speed=-5.0 is not allowed"),
+        ({"task": "uniform", "speed": "fast"}, "speed='fast' is not allowed"),
+        ({"task": "uniform", "speed": float("nan")}, "speed=nan is not allowed"),
+        ({"task": "curved", "radius": 0.0}, "radius=0.0 is not allowed"),
+        ({"task": "fixed", "speed": 50.0}, "speed=50.0 is not allowed: task=fixed has no destination speed"),
+        ({"task": "uniform", "radius": 500.0}, "radius=500.0 is not allowed: task=uniform"),
+        ({"task": "curved", "turn_direction": 2}, "turn_direction=2 is not allowed: +1"),
+        ({"max_decisions": 0}, "max_decisions=0 is not allowed: an integer >= 1"),
+        ({"max_decisions": 2.5}, "max_decisions=2.5 is not allowed"),
+        ({"reward": "shaped"}, "reward='shaped' is not allowed: one of none, continuous, position, both"),
+        ({"compile": "yes"}, "compile='yes' is not allowed"),
+    ],
+)
+def test_bad_kwargs_raise_one_line_value_errors(kwargs, fragment):
+    with pytest.raises(ValueError) as error:
+        _make(**kwargs)
+    message = str(error.value)
+    assert fragment in message and "\n" not in message
+
+
+def test_bad_calls():
+    with pytest.raises(ValueError, match="render_mode='human' is not allowed: None"):
+        GuidanceGymEnv(render_mode="human")
+    env = _make(task="fixed").unwrapped
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(0)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"action=7 is not allowed: an integer maneuver index in \[0, 6\]"):
+        env.step(7)
+    _, _, _, _, info = env.step(np.int64(1))  # numpy integers (what spaces sample) are fine
+    assert info["step_count"] == 1

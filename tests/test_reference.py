@@ -1,0 +1,132 @@
+"""The pure-Python reference (agrl/reference.py) computes what the torch simulator computes.
+
+A correctness test, not a timing test: it makes ``python -m agrl.bench`` compare like with like.
+In float64 the two agree to rounding; in float32 (what training runs) to float32 accuracy.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+
+import pytest
+import torch
+
+from agrl.core.aircraft import maneuver_table
+from agrl.core.destinations import curved_turn_rate
+from agrl.core.simulation import DecisionSimulator, SimulationParameters
+from agrl.core.termination import Outcome
+from agrl.envs.parameters import ManeuverLoadFactors
+from agrl.reference import maneuver_rows, reference_decision, wrap_angle
+
+PARAMS = SimulationParameters()
+MANEUVERS = ManeuverLoadFactors()
+
+# (aircraft x, y, z, v, theta, psi, phi), (destination x, y, z, psi), destination speed, turn rate
+SCENARIOS = {
+    "fixed": ((-6_000.0, 3_000.0, 2_500.0, 200.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), 0.0, 0.0),
+    "uniform": ((4_000.0, -5_000.0, 1_000.0, 180.0, 0.1, 2.0, 0.0), (0.0, 0.0, 0.0, 0.0), 50.0, 0.0),
+    "curved": ((-2_000.0, -7_000.0, 4_000.0, 230.0, -0.2, -1.0, 0.0), (500.0, 0.0, 0.0, 1.5), 20.0,
+               curved_turn_rate(20.0, 500.0, -1.0)),
+    "irregular": ((0.0, 8_000.0, 3_000.0, 120.0, 0.0, -3.0, 0.0), (-3_000.0, 2_000.0, 0.0, -0.5), 37.0, 0.03),
+    # the destination crosses the +x wall during the first decision and is reflected
+    "wall": ((-5_000.0, 0.0, 2_000.0, 200.0, 0.0, 3.0, 0.0), (9_990.0, 9_995.0, 0.0, 0.7), 100.0, 0.0),
+}
+
+
+def _torch_decisions(scenario, actions, dtype):
+    aircraft, destination, speed, turn_rate = scenario
+    controls = maneuver_table(MANEUVERS.turn, MANEUVERS.pull_up, MANEUVERS.push_over,
+                              MANEUVERS.acceleration, MANEUVERS.deceleration, dtype=dtype)
+    simulator = DecisionSimulator(PARAMS, controls, compile=False)
+    aircraft = torch.tensor([aircraft], dtype=dtype)
+    destination = torch.tensor([destination], dtype=dtype)
+    speed, turn_rate = torch.tensor([speed], dtype=dtype), torch.tensor([turn_rate], dtype=dtype)
+    results = []
+    for action in actions:
+        result = simulator(aircraft, destination, speed, turn_rate, torch.tensor([action]))
+        results.append((result.aircraft_state[0].tolist(), result.destination_state[0].tolist(),
+                        int(result.outcome[0])))
+        aircraft, destination = result.aircraft_state, result.destination_state
+        if results[-1][2] != Outcome.RUNNING:
+            break
+    return results
+
+
+def _reference_decisions(scenario, actions):
+    aircraft, destination, speed, turn_rate = scenario
+    results = []
+    for action in actions:
+        result = reference_decision(aircraft, destination, speed, turn_rate, action, PARAMS, MANEUVERS)
+        results.append((list(result.aircraft_state), list(result.destination_state), result.outcome))
+        aircraft, destination = result.aircraft_state, result.destination_state
+        if result.outcome != Outcome.RUNNING:
+            break
+    return results
+
+
+def _assert_close(torch_results, reference_results, position_m, angle_rad, speed_ms):
+    assert len(torch_results) == len(reference_results)
+    for (aircraft, destination, outcome), (ref_aircraft, ref_destination, ref_outcome) in zip(
+        torch_results, reference_results, strict=True
+    ):
+        assert outcome == ref_outcome
+        tolerances = (position_m,) * 3 + (speed_ms, angle_rad, angle_rad, angle_rad)
+        names = ("x", "y", "z", "v", "θ", "ψ", "φ")
+        for name, value, expected, tolerance in zip(names, aircraft, ref_aircraft, tolerances, strict=True):
+            difference = wrap_angle(value - expected) if name == "ψ" else value - expected
+            assert abs(difference) <= tolerance, (name, value, expected)
+        for name, value, expected, tolerance in zip("xyzψ", destination, ref_destination,
+                                                    (position_m,) * 3 + (angle_rad,), strict=True):
+            difference = wrap_angle(value - expected) if name == "ψ" else value - expected
+            assert abs(difference) <= tolerance, ("destination", name, value, expected)
+
+
+def test_maneuver_rows_match_the_torch_table():
+    table = MANEUVERS.controls()
+    for index, (axial, normal, direction) in enumerate(maneuver_rows(MANEUVERS)):
+        assert table.axial_excess[index].item() == pytest.approx(axial)
+        assert table.turn_direction[index].item() == direction
+        if normal is None:
+            assert math.isnan(table.normal_load[index].item())
+        else:
+            assert table.normal_load[index].item() == pytest.approx(normal)
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
+def test_every_maneuver_agrees_in_float64(name):
+    """Four decisions (600 integration steps) per maneuver: equal to rounding error."""
+    for action in range(7):
+        actions = [action, action, (action + 3) % 7, action]
+        expected = _reference_decisions(SCENARIOS[name], actions)
+        actual = _torch_decisions(SCENARIOS[name], actions, torch.float64)
+        _assert_close(actual, expected, position_m=1e-6, angle_rad=1e-9, speed_ms=1e-9)
+
+
+def test_random_sequences_agree_in_float32():
+    """What training runs: float32 tensors stay within float32 accuracy of the float64 reference."""
+    rng = random.Random(0)
+    for name, scenario in SCENARIOS.items():
+        actions = [rng.randrange(7) for _ in range(5)]
+        expected = _reference_decisions(scenario, actions)
+        actual = _torch_decisions(scenario, actions, torch.float32)
+        _assert_close(actual, expected, position_m=1.0, angle_rad=1e-4, speed_ms=1e-2)
+
+
+def test_the_destination_is_reflected_at_the_wall():
+    result = reference_decision(*SCENARIOS["wall"], 0, PARAMS, MANEUVERS)
+    x, y, _, heading = result.destination_state
+    assert x < PARAMS.airspace.x_max and y < PARAMS.airspace.y_max
+    assert math.cos(heading) < 0 and math.sin(heading) < 0  # mirrored in both walls
+
+
+def test_success_and_leaving_the_airspace_end_the_decision_early():
+    arriving = ((-1_500.0, 0.0, 100.0, 200.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), 0.0, 0.0)
+    leaving = ((9_800.0, 0.0, 1_000.0, 200.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), 0.0, 0.0)
+    for scenario, outcome, substeps in ((arriving, Outcome.SUCCESS, 125), (leaving, Outcome.OUT_OF_AIRSPACE, 51)):
+        result = reference_decision(*scenario, 0, PARAMS, MANEUVERS)
+        assert result.outcome == outcome and result.substeps == substeps
+        # The torch simulator freezes the row at the same integration step.
+        (aircraft, _, torch_outcome), = _torch_decisions(scenario, [0], torch.float64)
+        assert torch_outcome == outcome
+        assert aircraft[0] == pytest.approx(result.aircraft_state[0], abs=1e-6)
