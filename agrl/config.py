@@ -242,17 +242,17 @@ class EvaluationConfig:
 
 @dataclass
 class CurriculumConfig:
-    """Start-altitude curriculum: episodes start low and the ceiling rises as training succeeds."""
+    """Start-box curriculum: training episodes start in a shrunken box around the destination that grows
+    as training succeeds (a reverse curriculum); evaluation always uses the full box."""
 
     enabled: bool = True
-    initial_max_altitude: float = 1_500.0  # m, first ceiling of the start altitude
-    altitude_step: float = 500.0  # m added to the ceiling at each promotion
-    promotion_success: float = 0.9  # training success rate (one iteration) that earns a promotion
+    initial_scale: float = 0.3  # fraction of the start box (about the destination's start) at first
+    scale_step: float = 0.1  # added to the fraction at each promotion
+    promotion_success: float = 0.8  # training success rate (one iteration) that earns a promotion
 
     def __post_init__(self) -> None:
-        _require(self.initial_max_altitude >= 0, "curriculum.initial_max_altitude", self.initial_max_altitude,
-                 ">= 0 m")
-        _require(self.altitude_step > 0, "curriculum.altitude_step", self.altitude_step, "> 0 m")
+        _require(0 < self.initial_scale <= 1, "curriculum.initial_scale", self.initial_scale, "(0, 1]")
+        _require(self.scale_step > 0, "curriculum.scale_step", self.scale_step, "> 0")
         _require(0 < self.promotion_success <= 1, "curriculum.promotion_success", self.promotion_success,
                  "(0, 1]")
 
@@ -285,6 +285,27 @@ class TrainConfig:
         _require(0 <= self.target_success <= 1, "target_success", self.target_success, "[0, 1]")
 
 
+@dataclass
+class EvaluateConfig:
+    """The root config of ``python -m agrl.evaluate``."""
+
+    checkpoint: str = MISSING
+    task: Any = None
+    episodes: int = 1000
+    seed: int = 0
+    speed: float | None = None
+    radius: float | None = None
+    device: str = "cpu"
+    trajectories: int = 10
+    output_dir: str | None = None
+
+    def __post_init__(self) -> None:
+        _require(self.episodes >= 1, "episodes", self.episodes, ">= 1")
+        _require(self.trajectories >= 0, "trajectories", self.trajectories, ">= 0")
+        _require(self.device == "cpu" or self.device.startswith("cuda"), "device", self.device,
+                 "cpu, cuda or cuda:N")
+
+
 def _default_if_null(value: Any, default: Any) -> Any:
     return default if value is None else value
 
@@ -295,6 +316,7 @@ def register_configs() -> None:
         OmegaConf.register_new_resolver("agrl_default", _default_if_null)
     store = ConfigStore.instance()
     store.store(name="train_schema", node=TrainConfig)
+    store.store(name="evaluate_schema", node=EvaluateConfig)
     for group, node in (
         ("task", TaskConfig), ("reward", RewardConfig), ("simulation", SimulationConfig),
         ("agent", AgentConfig), ("ppo", PPOConfig), ("method", MethodConfig),

@@ -33,7 +33,8 @@ def _resume_config(cfg: DictConfig, reference: str) -> tuple[DictConfig, dict, P
     path = resolve_checkpoint_path(reference)
     payload = load_checkpoint(path, required=("actor", "critic", "optimizer", "counters", "carrier", "rng", "config"))
     payload["_path"] = str(path)
-    saved = OmegaConf.merge(OmegaConf.structured(type(load_config(cfg))), payload["config"])
+    # The composed config carries the typed group schemas; the run's saved values go on top.
+    saved = OmegaConf.merge(cfg, payload["config"])
     overrides = [o for o in HydraConfig.get().overrides.task if o.split("=")[0].lstrip("+~").startswith(RESUMABLE_OVERRIDES)]
     saved = OmegaConf.merge(saved, OmegaConf.from_dotlist(overrides))
     saved.resume = str(reference)

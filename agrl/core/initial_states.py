@@ -10,6 +10,7 @@ that no episode begins solved. The defaults live in ``conf/simulation/paper.yaml
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import torch
@@ -24,6 +25,32 @@ class InitialStateDistribution:
     z_range: tuple[float, float] = (0.0, 5_000.0)
     speed_range: tuple[float, float] = (200.0, 200.0)
     min_horizontal_distance: float = 2_000.0  # m from the destination's start
+
+
+def scale_distribution(
+    distribution: InitialStateDistribution, scale: float, destination_start: tuple[float, float, float]
+) -> InitialStateDistribution:
+    """Shrink the start box towards the destination's start by ``scale`` in (0, 1] (a reverse curriculum).
+
+    Horizontal ranges shrink about the destination; the altitude range keeps its
+    lower bound and shrinks its height. ``scale=1`` returns the distribution unchanged.
+    """
+    if not 0 < scale <= 1:
+        raise ValueError(f"scale={scale} is not allowed: (0, 1]")
+
+    def shrink(bounds: tuple[float, float], centre: float) -> tuple[float, float]:
+        low, high = bounds
+        centre = min(max(centre, low), high)
+        return centre + scale * (low - centre), centre + scale * (high - centre)
+
+    x_dest, y_dest, _ = destination_start
+    z_low, z_high = distribution.z_range
+    return dataclasses.replace(
+        distribution,
+        x_range=shrink(distribution.x_range, x_dest),
+        y_range=shrink(distribution.y_range, y_dest),
+        z_range=(z_low, z_low + scale * (z_high - z_low)),
+    )
 
 
 def _uniform(low: float, high: float, count: int, generator, device) -> torch.Tensor:

@@ -26,6 +26,8 @@ OBSERVATION_FEATURES = (
     "bearing_sin",  # bearing of the destination relative to the aircraft's heading
     "bearing_cos",
     "altitude_difference",  # (z_d - z_a) / airspace height
+    "altitude_difference_near",  # tanh((z_d - z_a) / 500 m): resolves the tolerance band near the goal
+    "horizontal_distance_near",  # tanh(distance / 2 km)
     "heading_difference_sin",  # psi_d - psi_a
     "heading_difference_cos",
     "along_track",  # aircraft position in the destination's frame / half-width
@@ -39,6 +41,12 @@ OBSERVATION_FEATURES = (
 ) + tuple(f"last_action_{name}" for name in MANEUVER_NAMES)
 
 OBSERVATION_SIZE = len(OBSERVATION_FEATURES)
+
+# Scales of the "near" features: a few times equation 2's tolerances, so that the
+# last approach is resolved finely (the airspace-wide features alone put the whole
+# 200 m altitude band into 4 % of their range).
+NEAR_ALTITUDE_SCALE = 500.0  # m
+NEAR_DISTANCE_SCALE = 2_000.0  # m
 
 
 def _to_unit_interval(value: torch.Tensor, low: float, high: float) -> torch.Tensor:
@@ -72,6 +80,8 @@ def policy_observation(
             torch.sin(bearing),
             torch.cos(bearing),
             (dest_z - z) / height,
+            torch.tanh((dest_z - z) / NEAR_ALTITUDE_SCALE),
+            torch.tanh(distance / NEAR_DISTANCE_SCALE),
             torch.sin(heading_difference),
             torch.cos(heading_difference),
             along_track / half_width,

@@ -108,7 +108,8 @@ def guidance_parameters(
 
     budget: dict[str, int] = {}
     if max_decisions is not None:
-        if isinstance(max_decisions, bool) or not isinstance(max_decisions, (int, np.integer)) or max_decisions < 1:
+        integral = isinstance(max_decisions, (int, np.integer)) and not isinstance(max_decisions, bool)
+        if not integral or max_decisions < 1:
             _fail("max_decisions", max_decisions, "an integer >= 1 (decisions of 3 s per episode)")
         budget["max_decisions"] = int(max_decisions)
     simulation = SimulationConfig(compile=compile, **budget)

@@ -33,6 +33,7 @@ from torchrl.objectives.value import GAE
 from torchrl.record.loggers import TensorboardLogger
 
 from agrl.config import TrainConfig, to_guidance_parameters
+from agrl.core.initial_states import scale_distribution
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import GuidanceEnv
 from agrl.rl.checkpoint import (
@@ -58,7 +59,7 @@ class Counters:
     frames: int = 0
     wall_time: float = 0.0  # seconds of training, summed over resumed sessions
     best_success: float = -1.0
-    curriculum_max_altitude: float | None = None  # m; None = curriculum off or finished
+    curriculum_scale: float = 1.0  # fraction of the start box used for training episodes
 
 
 def flatten_config(config: dict[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -118,7 +119,7 @@ class Trainer:
         )
         self.counters = Counters()
         if cfg.curriculum.enabled:
-            self.counters.curriculum_max_altitude = cfg.curriculum.initial_max_altitude
+            self.counters.curriculum_scale = cfg.curriculum.initial_scale
         if resume_payload is not None:
             self._restore(resume_payload)
         self._apply_curriculum()
@@ -182,28 +183,18 @@ class Trainer:
         return self.advantage(trajectories)
 
     def _apply_curriculum(self) -> None:
-        ceiling = self.counters.curriculum_max_altitude
-        full = self.params.initial_state
-        if ceiling is None or ceiling >= full.z_range[1]:
-            self.counters.curriculum_max_altitude = None
-            self.env.set_initial_state_distribution(full)
-            return
-        low = full.z_range[0]
-        self.env.set_initial_state_distribution(
-            dataclasses.replace(full, z_range=(low, max(low, ceiling)))
-        )
+        scale = min(1.0, self.counters.curriculum_scale)
+        start = tuple(self.params.destination.start[:3])
+        self.env.set_initial_state_distribution(scale_distribution(self.params.initial_state, scale, start))
 
     def _advance_curriculum(self, metrics: dict[str, float]) -> None:
-        ceiling = self.counters.curriculum_max_altitude
-        if ceiling is None:
-            return
-        if metrics.get("train/success_rate", 0.0) >= self.cfg.curriculum.promotion_success:
-            self.counters.curriculum_max_altitude = ceiling + self.cfg.curriculum.altitude_step
+        scale = self.counters.curriculum_scale
+        if scale < 1.0 and metrics.get("train/success_rate", 0.0) >= self.cfg.curriculum.promotion_success:
+            self.counters.curriculum_scale = min(1.0, round(scale + self.cfg.curriculum.scale_step, 6))
             self._apply_curriculum()
-            log.info("curriculum: start altitudes now up to %s", self.counters.curriculum_max_altitude or "the full box")
-        metrics["train/curriculum_max_altitude"] = (
-            self.counters.curriculum_max_altitude or self.params.initial_state.z_range[1]
-        )
+            log.info("curriculum: training starts now use %.0f %% of the start box",
+                     100 * self.counters.curriculum_scale)
+        metrics["train/curriculum_scale"] = self.counters.curriculum_scale
 
     # ------------------------------------------------------------------ checkpoints
     def _state(self) -> dict[str, Any]:

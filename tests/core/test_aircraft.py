@@ -97,13 +97,17 @@ def test_point_mass_derivatives_match_equation_3():
 def test_wings_level_maneuvers_hold_flight_path_angle(maneuver):
     # The balanced normal load n_z = cos(theta) makes theta' = 0 exactly at zero bank.
     theta = torch.tensor([-0.3, 0.0, 0.25], dtype=F64)
-    aircraft = AircraftState(*(torch.tensor(v, dtype=F64).expand(3) for v in (0.0, 0.0, 1000.0, 180.0)),
-                             flight_path_angle=theta, heading=torch.zeros(3, dtype=F64),
-                             bank=torch.full((3,), 0.4, dtype=F64))
+    aircraft = AircraftState(
+        *(torch.tensor(v, dtype=F64).expand(3) for v in (0.0, 0.0, 1000.0, 180.0)),
+        flight_path_angle=theta,
+        heading=torch.zeros(3, dtype=F64),
+        bank=torch.full((3,), 0.4, dtype=F64),
+    )
     table = controls64()
     a = ACTION[maneuver]
-    moved = integrate_aircraft(aircraft, table.axial_excess[a], table.normal_load[a], table.turn_direction[a],
-                               0.02, LIMITS)
+    moved = integrate_aircraft(
+        aircraft, table.axial_excess[a], table.normal_load[a], table.turn_direction[a], 0.02, LIMITS
+    )
     torch.testing.assert_close(moved.flight_path_angle, theta, rtol=0, atol=1e-12)
     assert torch.all(moved.bank == 0)
 
@@ -176,8 +180,9 @@ def test_level_max_load_factor_turn_radius(maneuver, side):
     assert float(track[-1, 6]) == pytest.approx(side * -phi, rel=1e-9)
     # Heading changes by the turn rate each decision: a left turn makes psi grow.
     heading_steps = wrap_angle(track[1:, 5] - track[:-1, 5])
-    torch.testing.assert_close(heading_steps, torch.full_like(heading_steps, side * turn_rate * 3.0),
-                               rtol=1e-6, atol=0)
+    torch.testing.assert_close(
+        heading_steps, torch.full_like(heading_steps, side * turn_rate * 3.0), rtol=1e-6, atol=0
+    )
 
 
 def test_left_turn_turns_towards_plus_y():
@@ -189,8 +194,9 @@ def test_left_turn_turns_towards_plus_y():
         a = ACTION[name]
         moved = aircraft
         for _ in range(50):
-            moved = integrate_aircraft(moved, table.axial_excess[a], table.normal_load[a],
-                                       table.turn_direction[a], 0.02, LIMITS)
+            moved = integrate_aircraft(
+                moved, table.axial_excess[a], table.normal_load[a], table.turn_direction[a], 0.02, LIMITS
+            )
         assert sign * float(moved.heading) > 0
         assert sign * float(moved.y) > 0
         assert sign * float(moved.bank) < 0  # positive bank makes psi decrease (equation 3)
@@ -207,7 +213,9 @@ def test_climbing_turn_holds_flight_path_angle():
     assert states[-1][:, 6].tolist() == pytest.approx([-expected_bank, expected_bank], rel=1e-9)
 
 
-@pytest.mark.parametrize("maneuver,load", [("pull_up", LOAD_FACTORS.pull_up), ("push_over", LOAD_FACTORS.push_over)])
+@pytest.mark.parametrize(
+    "maneuver,load", [("pull_up", LOAD_FACTORS.pull_up), ("push_over", LOAD_FACTORS.push_over)]
+)
 def test_pull_up_and_push_over_flight_path_rate(maneuver, load):
     generator = torch.Generator().manual_seed(7)
     count = 16
@@ -218,8 +226,9 @@ def test_pull_up_and_push_over_flight_path_rate(maneuver, load):
     table = controls64()
     a = ACTION[maneuver]
     dt = 0.02
-    moved = integrate_aircraft(aircraft, table.axial_excess[a], table.normal_load[a], table.turn_direction[a],
-                               dt, LIMITS)
+    moved = integrate_aircraft(
+        aircraft, table.axial_excess[a], table.normal_load[a], table.turn_direction[a], dt, LIMITS
+    )
     for i in range(count):
         vi, th = float(v[i]), float(theta[i])
         # Wings level (phi = 0): theta' = g / v (n_z cos(phi) - cos(theta)).
@@ -238,6 +247,16 @@ def test_accelerate_and_decelerate_rates(theta):
     expected = [150.0 + LOAD_FACTORS.acceleration * delta, 150.0 - LOAD_FACTORS.deceleration * delta]
     assert states[-1][:, 3].tolist() == pytest.approx(expected, rel=1e-9)
     assert states[-1][:, 4].tolist() == pytest.approx([theta, theta], abs=1e-9)
+    # Distance flown: the documented semi-implicit scheme moves with the updated speed,
+    # sum_{k=1..N} (v0 + a k dt) dt; it differs from the exact v0 T + a T^2 / 2 by a T dt / 2.
+    dt, steps = 0.02, 150
+    for row, excess in enumerate((LOAD_FACTORS.acceleration, -LOAD_FACTORS.deceleration)):
+        a = GRAVITY * excess
+        path = sum((150.0 + a * k * dt) * dt for k in range(1, steps + 1))
+        exact = 150.0 * 3.0 + a * 3.0**2 / 2
+        assert path == pytest.approx(exact + a * 3.0 * dt / 2, abs=1e-9)
+        flown = float(states[-1][row, 0]) / math.cos(theta)
+        assert flown == pytest.approx(path, abs=1e-6)
 
 
 def test_speed_clamps_at_limits():

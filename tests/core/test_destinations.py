@@ -74,7 +74,7 @@ def test_curved_destination_stays_on_its_circle():
     xs = torch.stack([s.x for s in track]).double()  # (steps + 1, count)
     ys = torch.stack([s.y for s in track]).double()
     for column, (radius, direction) in enumerate(cases):
-        # Start at the origin heading +x: the centre is at (0, +radius) turning towards +psi, else (0, -radius).
+        # From the origin heading +x the centre is (0, +radius) turning towards +psi, else (0, -radius).
         distance = torch.hypot(xs[:, column], ys[:, column] - direction * radius)
         assert float((distance - radius).abs().max()) / radius < 0.005
         # Travelled the right way round: towards +y for direction +1.
@@ -160,7 +160,9 @@ def test_redraw_irregular_motion_is_reproducible_with_a_seeded_generator():
 
     def draw(seed):
         generator = torch.Generator().manual_seed(seed)
-        return [redraw_irregular_motion(speed, turn_rate, 0.5, (10.0, 50.0), 0.04, generator) for _ in range(3)]
+        return [
+            redraw_irregular_motion(speed, turn_rate, 0.5, (10.0, 50.0), 0.04, generator) for _ in range(3)
+        ]
 
     first, second, other = draw(42), draw(42), draw(43)
     for (s1, t1), (s2, t2) in zip(first, second, strict=True):

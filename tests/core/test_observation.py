@@ -34,7 +34,12 @@ def random_inputs(count: int, seed: int):
         dim=-1,
     )
     destination = torch.stack(
-        (u(count) * 16_000 - 8_000, u(count) * 16_000 - 8_000, u(count) * 5_000, (u(count) * 2 - 1) * math.pi),
+        (
+            u(count) * 16_000 - 8_000,
+            u(count) * 16_000 - 8_000,
+            u(count) * 5_000,
+            (u(count) * 2 - 1) * math.pi,
+        ),
         dim=-1,
     )
     last_action = torch.randint(0, NUM_ACTIONS, (count,), generator=generator)
@@ -53,7 +58,9 @@ def test_shape_and_finite():
     aircraft, destination, last_action = random_inputs(64, seed=0)
     obs = observe(aircraft, destination, last_action)
     assert obs.shape == (64, OBSERVATION_SIZE)
-    assert OBSERVATION_SIZE == len(OBSERVATION_FEATURES) == 14 + NUM_ACTIONS
+    assert OBSERVATION_SIZE == len(OBSERVATION_FEATURES) == len(set(OBSERVATION_FEATURES))
+    one_hot_names = [f"last_action_{name}" for name in MANEUVER_NAMES]
+    assert list(OBSERVATION_FEATURES[-NUM_ACTIONS:]) == one_hot_names
     assert torch.isfinite(obs).all()
     # Batch shapes are preserved.
     obs2 = observe(aircraft.reshape(4, 16, 7), destination.reshape(4, 16, 4), last_action.reshape(4, 16))
@@ -80,8 +87,9 @@ def test_invariant_to_horizontal_translation():
     torch.testing.assert_close(moved[:, keep], obs[:, keep], rtol=0, atol=1e-9)
     # The absolute position features do see the shift (x maps 20 km to 2 units).
     expected_dx = 2 * shift[0] / (AIRSPACE.x_max - AIRSPACE.x_min)
-    torch.testing.assert_close(moved[:, INDEX["x"]] - obs[:, INDEX["x"]], expected_dx.expand(32), rtol=0,
-                               atol=1e-9)
+    torch.testing.assert_close(
+        moved[:, INDEX["x"]] - obs[:, INDEX["x"]], expected_dx.expand(32), rtol=0, atol=1e-9
+    )
 
 
 def test_invariant_to_rotation():
@@ -123,11 +131,10 @@ def test_geometry_features():
     assert float(obs[INDEX["altitude_difference"]]) == pytest.approx(0.0, abs=1e-12)
     assert float(obs[INDEX["speed"]]) == pytest.approx(0.0, abs=1e-12)  # mid-range speed
     assert float(obs[INDEX["altitude"]]) == pytest.approx(-0.6)  # 1000 m of [0, 5000]
-    # The destination to the left (+x side when heading +y is to the right): bearing sign.
+    # Heading +y: a destination at -x lies to the left (the +psi side), one at +x to the right.
     right = torch.tensor([[1_000.0, 0.0, 1_000.0, math.pi / 2]], dtype=torch.float64)
     left = torch.tensor([[-1_000.0, 0.0, 1_000.0, math.pi / 2]], dtype=torch.float64)
     at_origin = torch.tensor([[0.0, 0.0, 1_000.0, 175.0, 0.0, math.pi / 2, 0.0]], dtype=torch.float64)
     zero_action = torch.zeros(1, dtype=torch.int64)
-    # psi grows towards +y from +x: a destination at +psi relative bearing (here -x) has sin > 0.
     assert float(observe(at_origin, left, zero_action)[0, INDEX["bearing_sin"]]) == pytest.approx(1.0)
     assert float(observe(at_origin, right, zero_action)[0, INDEX["bearing_sin"]]) == pytest.approx(-1.0)

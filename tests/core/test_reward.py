@@ -21,8 +21,15 @@ from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
 from agrl.envs.parameters import DestinationMotion
 
 CUSTOM = RewardParameters(
-    success=7.0, out_of_airspace=-3.0, budget_exhausted=-2.0, action_change=-0.3, action_hold=-0.02,
-    distance_weight=2e-4, heading_weight=0.7, altitude_weight=3e-5, gamma=0.9,
+    success=7.0,
+    out_of_airspace=-3.0,
+    budget_exhausted=-2.0,
+    action_change=-0.3,
+    action_hold=-0.02,
+    distance_weight=2e-4,
+    heading_weight=0.7,
+    altitude_weight=3e-5,
+    gamma=0.9,
 )
 
 
@@ -59,7 +66,9 @@ def random_states(count: int, seed: int):
 
 
 def test_termination_reward_values():
-    outcome = torch.tensor([Outcome.RUNNING, Outcome.SUCCESS, Outcome.OUT_OF_AIRSPACE, Outcome.BUDGET_EXHAUSTED])
+    outcome = torch.tensor(
+        [Outcome.RUNNING, Outcome.SUCCESS, Outcome.OUT_OF_AIRSPACE, Outcome.BUDGET_EXHAUSTED]
+    )
     assert termination_reward(outcome, CUSTOM).tolist() == [0.0, 7.0, -3.0, -2.0]
     default = RewardParameters()
     assert termination_reward(outcome, default).tolist() == [0.0, 20.0, -20.0, -10.0]  # Table 2
@@ -76,18 +85,23 @@ def test_position_potential_against_hand_computation():
     aircraft, destination = random_states(16, seed=5)
     got = position_potential(aircraft, destination, CUSTOM)
     for i in range(16):
-        assert float(got[i]) == pytest.approx(hand_position_potential(aircraft[i], destination[i], CUSTOM),
-                                              rel=1e-9, abs=1e-12)
+        assert float(got[i]) == pytest.approx(
+            hand_position_potential(aircraft[i], destination[i], CUSTOM), rel=1e-9, abs=1e-12
+        )
 
 
 def test_position_potential_terms():
     params = RewardParameters()
     dest = torch.tensor([0.0, 0.0, 0.0, 0.0])
     # 3-4-5 triangle (5 km), 1 km above, same heading: -0.5 + 0.5 - 0.01.
-    on_track = position_potential(torch.tensor([3_000.0, 4_000.0, 1_000.0, 200.0, 0.0, 0.0, 0.0]), dest, params)
+    on_track = position_potential(
+        torch.tensor([3_000.0, 4_000.0, 1_000.0, 200.0, 0.0, 0.0, 0.0]), dest, params
+    )
     assert float(on_track) == pytest.approx(-0.5 + 0.5 - 0.01, abs=1e-6)
     # Opposite heading costs 2 * c7, closer is better.
-    reverse = position_potential(torch.tensor([3_000.0, 4_000.0, 1_000.0, 200.0, 0.0, math.pi, 0.0]), dest, params)
+    reverse = position_potential(
+        torch.tensor([3_000.0, 4_000.0, 1_000.0, 200.0, 0.0, math.pi, 0.0]), dest, params
+    )
     assert float(on_track - reverse) == pytest.approx(2 * params.heading_weight, abs=1e-6)
     closer = position_potential(torch.tensor([300.0, 400.0, 1_000.0, 200.0, 0.0, 0.0, 0.0]), dest, params)
     assert float(closer) > float(on_track)
@@ -102,7 +116,9 @@ def test_potential_switches_and_terminal():
         for use_p in (True, False):
             params = RewardParameters(use_continuous_action=use_c, use_position=use_p)
             got = potential(aircraft, destination, last, before, not_terminal, params)
-            expected = [hand_potential(aircraft[i], destination[i], last[i], before[i], params) for i in range(8)]
+            expected = [
+                hand_potential(aircraft[i], destination[i], last[i], before[i], params) for i in range(8)
+            ]
             assert got.tolist() == pytest.approx(expected, rel=1e-6, abs=1e-6)
             if not use_c and not use_p:
                 assert got.tolist() == [0.0] * 8
@@ -157,8 +173,13 @@ def test_shaping_telescopes_over_an_episode(kind, reward):
     gamma = reward.gamma
     outcomes_seen = set()
     for row in range(num_envs):
-        phi0 = hand_potential(start["aircraft_state"][row], start["destination_state"][row],
-                              start["last_action"][row], start["action_before_last"][row], reward)
+        phi0 = hand_potential(
+            start["aircraft_state"][row],
+            start["destination_state"][row],
+            start["last_action"][row],
+            start["action_before_last"][row],
+            reward,
+        )
         shaped_sum = 0.0  # float64 accumulation
         for t, nxt in enumerate(records):
             outcome = int(nxt["outcome"][row])
@@ -171,8 +192,13 @@ def test_shaping_telescopes_over_an_episode(kind, reward):
                 assert shaped_sum == pytest.approx(-phi0, abs=1e-4)
                 break
             # Before the end, each prefix telescopes to gamma^(t+1) Phi(S_{t+1}) - Phi(S_0).
-            phi_next = hand_potential(nxt["aircraft_state"][row], nxt["destination_state"][row],
-                                      nxt["last_action"][row], nxt["action_before_last"][row], reward)
+            phi_next = hand_potential(
+                nxt["aircraft_state"][row],
+                nxt["destination_state"][row],
+                nxt["last_action"][row],
+                nxt["action_before_last"][row],
+                reward,
+            )
             assert shaped_sum == pytest.approx(gamma ** (t + 1) * phi_next - phi0, abs=1e-4)
         else:
             pytest.fail(f"row {row} never finished")

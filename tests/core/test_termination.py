@@ -8,10 +8,10 @@ import pytest
 import torch
 
 from agrl.core.aircraft import MANEUVER_NAMES
+from agrl.core.reward import RewardParameters
 from agrl.core.simulation import DecisionSimulator, SimulationParameters
 from agrl.core.termination import Airspace, Outcome, SuccessTolerance, is_outside_airspace, is_success
 from agrl.envs import GuidanceEnv, GuidanceParameters, ManeuverLoadFactors
-from agrl.core.reward import RewardParameters
 
 TOLERANCE = SuccessTolerance(distance=1_000.0, altitude=200.0, heading=math.radians(30))
 
@@ -52,7 +52,9 @@ def test_is_success_heading_tolerance_and_wrap_around():
     assert success((0.0, 0.0, 0.0, math.radians(179)), (0.0, 0.0, 0.0, math.radians(-179)), narrow)
     assert success((0.0, 0.0, 0.0, math.radians(-179)), (0.0, 0.0, 0.0, math.radians(179)), narrow)
     # Unwrapped headings (several turns apart) are compared modulo 2 pi.
-    assert success((0.0, 0.0, 0.0, math.radians(179) + 4 * math.pi), (0.0, 0.0, 0.0, math.radians(-179)), narrow)
+    assert success(
+        (0.0, 0.0, 0.0, math.radians(179) + 4 * math.pi), (0.0, 0.0, 0.0, math.radians(-179)), narrow
+    )
     tight = SuccessTolerance(distance=1_000.0, altitude=200.0, heading=math.radians(1))
     assert not success((0.0, 0.0, 0.0, math.radians(179)), (0.0, 0.0, 0.0, math.radians(-179)), tight)
     # Opposite headings never succeed, whatever the position.
@@ -108,9 +110,13 @@ def test_success_is_caught_when_passing_through_between_decisions():
 
 def test_out_of_airspace_is_detected_mid_decision_and_frozen():
     simulator = DecisionSimulator(SimulationParameters(), ManeuverLoadFactors().controls(), compile=False)
-    aircraft = torch.tensor([[9_800.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0],  # leaves through +x
-                             [5_000.0, 0.0, 60.0, 200.0, -0.3, 0.0, 0.0],  # hits the floor
-                             [0.0, 5_000.0, 2_500.0, 200.0, 0.0, 0.0, 0.0]])  # stays in
+    aircraft = torch.tensor(
+        [
+            [9_800.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0],  # leaves through +x
+            [5_000.0, 0.0, 60.0, 200.0, -0.3, 0.0, 0.0],  # hits the floor
+            [0.0, 5_000.0, 2_500.0, 200.0, 0.0, 0.0, 0.0],
+        ]
+    )  # stays in
     dest = torch.tensor([0.0, 0.0, 0.0, 0.0]).expand(3, 4)
     zeros = torch.zeros(3)
     result = simulator(aircraft, dest, zeros, zeros, torch.zeros(3, dtype=torch.int64))
@@ -179,8 +185,9 @@ def test_env_budget_exhaustion_gives_c3():
 
 def test_env_airspace_exit_on_last_decision_is_not_budget_exhaustion():
     env = GuidanceEnv(GuidanceParameters(max_decisions=1), num_envs=2, seed=0)
-    start = torch.tensor([[9_800.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0],
-                          [-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0]])
+    start = torch.tensor(
+        [[9_800.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0], [-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0]]
+    )
     td = env.reset(env.scenario(aircraft_state=start))
     nxt = step(env, td, 0)["next"]
     assert nxt["outcome"].tolist() == [Outcome.OUT_OF_AIRSPACE, Outcome.BUDGET_EXHAUSTED]

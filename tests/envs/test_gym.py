@@ -51,7 +51,8 @@ def test_import_registers_the_env_and_is_light():
         importlib.reload(agrl)
     assert ENV_ID in gymnasium.registry
     # `import agrl` does not pull in torch (the env is built lazily by gymnasium.make).
-    code = "import sys, agrl, gymnasium; assert 'torch' not in sys.modules; print(gymnasium.spec('agrl/Guidance-v0').id)"
+    code = ("import sys, agrl, gymnasium; assert 'torch' not in sys.modules; "
+            "print(gymnasium.spec('agrl/Guidance-v0').id)")
     output = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert output.strip() == ENV_ID
 

@@ -1,0 +1,309 @@
+"""``python -m agrl.bench``: simulator throughput, one JSON object per line.
+
+Measures environment decisions per second (one decision = the paper's 3 s at a 20 ms
+integration step = 150 integration steps):
+
+- ``reference``: the pure-Python single-environment implementation of the same
+  equations (:mod:`agrl.reference`), the scalar baseline;
+- ``simulator``: the batched torch simulator (:class:`agrl.core.simulation.DecisionSimulator`)
+  at several batch sizes, eager and fused with ``torch.compile``, with the ratio to the
+  reference;
+- ``torchrl_env``: the full TorchRL ``GuidanceEnv.step_and_maybe_reset`` (simulator, reward,
+  observation, TensorDict bookkeeping, partial resets: what a collector calls) at one batch size.
+
+Every line has ``name``, ``value`` and ``unit``, plus fields such as ``batch``,
+``compiled``, ``substeps`` and ``device``. Each figure is the median of ``--repeats``
+timings after a warm-up (compiled functions are compiled during the warm-up; each
+compiled batch size gets its own static-shape compilation, as a training run with a
+fixed ``ppo.num_envs`` does). Threads: torch's default (``torch.get_num_threads()``).
+
+Examples::
+
+    python -m agrl.bench                      # full run (a few minutes, mostly compilation)
+    python -m agrl.bench --quick              # smoke test: small batches, eager only
+    python -m agrl.bench --batch-sizes 512 8192 --repeats 7 --modes compiled
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import random
+import statistics
+import sys
+import time
+from collections.abc import Callable, Sequence
+
+import torch
+
+from agrl.core.initial_states import InitialStateDistribution, sample_initial_aircraft
+from agrl.core.simulation import DecisionSimulator
+from agrl.envs.gym import guidance_parameters
+from agrl.envs.parameters import GuidanceParameters
+from agrl.reference import reference_decision
+
+FULL_BATCH_SIZES = (1024, 4096, 16384)
+QUICK_BATCH_SIZES = (64, 256)
+MODES = ("eager", "compiled")
+#: The benchmark task: a destination in uniform motion at 50 m/s (the destination's motion is computed
+#: for every task, so the cost per decision is the same for all of them).
+TASK = {"task": "uniform", "speed": 50.0}
+
+
+def emit(record: dict) -> None:
+    print(json.dumps(record), flush=True)
+
+
+def _significant(value: float, digits: int = 4) -> float:
+    if value == 0 or not math.isfinite(value):
+        return value
+    return round(value, max(0, digits - 1 - int(math.floor(math.log10(abs(value))))))
+
+
+def _synchronize(device: torch.device) -> Callable[[], None]:
+    if device.type == "cuda":
+        return lambda: torch.cuda.synchronize(device)
+    return lambda: None
+
+
+def time_call(fn: Callable[[], object], repeats: int, min_seconds: float, warmup: int,
+              sync: Callable[[], None] = lambda: None) -> tuple[float, int]:
+    """Median seconds per call of ``fn`` over ``repeats`` timings of ``calls`` calls each.
+
+    ``warmup`` untimed calls come first; ``calls`` is chosen so that one timing lasts
+    at least ``min_seconds``. Returns (seconds per call, calls per timing).
+    """
+    for _ in range(warmup):
+        fn()
+    sync()
+    start = time.perf_counter()
+    fn()
+    sync()
+    single = max(time.perf_counter() - start, 1e-9)
+    calls = max(1, math.ceil(min_seconds / single))
+    timings = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for _ in range(calls):
+            fn()
+        sync()
+        timings.append((time.perf_counter() - start) / calls)
+    return statistics.median(timings), calls
+
+
+def _inputs(params: GuidanceParameters, batch: int, device: torch.device, seed: int = 0):
+    """Start states of the benchmark task (the training distribution) and random actions."""
+    generator = torch.Generator().manual_seed(seed)
+    destination = torch.tensor(params.destination.start).expand(batch, 4).clone()
+    aircraft = sample_initial_aircraft(batch, InitialStateDistribution(), destination, generator)
+    speed, turn_rate = params.destination.initial_motion(batch, generator, torch.device("cpu"))
+    action = torch.randint(0, 7, (batch,), generator=generator)
+    return tuple(tensor.to(device) for tensor in (aircraft, destination, speed, turn_rate, action))
+
+
+# ---------------------------------------------------------------------------- the three measurements
+def bench_reference(params: GuidanceParameters, repeats: int, min_seconds: float) -> dict:
+    """Decisions per second of the pure-Python single environment (one decision per call)."""
+    count = 256
+    inputs = (tensor.tolist() for tensor in _inputs(params, count, torch.device("cpu")))
+    cases = list(zip(*inputs, strict=True))  # (aircraft, destination, speed, turn rate, action)
+    simulation, maneuvers = params.simulation, params.maneuvers
+    position = [0]
+
+    def one_decision():
+        case = cases[position[0] % count]
+        position[0] += 1
+        return reference_decision(*case, simulation, maneuvers)
+
+    seconds, calls = time_call(one_decision, repeats, min_seconds, warmup=16)
+    substeps = [reference_decision(*case, simulation, maneuvers).substeps for case in cases]
+    return {
+        "name": "reference_decisions_per_second",
+        "value": _significant(1.0 / seconds),
+        "unit": "decisions/s",
+        "batch": 1,
+        "compiled": False,
+        "substeps": simulation.substeps,
+        "device": "cpu",
+        "implementation": "pure Python (math, float64), agrl/reference.py",
+        # fewer than `substeps` when some decisions ended early (success or out of the airspace)
+        "mean_substeps_simulated": _significant(statistics.fmean(substeps)),
+        "seconds_per_decision": _significant(seconds),
+        "calls_per_timing": calls,
+        "repeats": repeats,
+    }
+
+
+def bench_simulator(params: GuidanceParameters, batch: int, compiled: bool, device: torch.device,
+                    repeats: int, min_seconds: float) -> dict:
+    """Decisions per second of :class:`DecisionSimulator` for ``batch`` rows (one decision per call)."""
+    if compiled:
+        torch._dynamo.reset()  # a static-shape compilation for this batch size, as in training
+    simulator = DecisionSimulator(params.simulation, params.maneuvers.controls(device), compile=compiled)
+    inputs = _inputs(params, batch, device)
+
+    def one_decision():
+        return simulator(*inputs)
+
+    with torch.no_grad():
+        start = time.perf_counter()
+        seconds, calls = time_call(one_decision, repeats, min_seconds, warmup=3 if compiled else 1,
+                                   sync=_synchronize(device))
+    return {
+        "name": "simulator_decisions_per_second",
+        "value": _significant(batch / seconds),
+        "unit": "decisions/s",
+        "batch": batch,
+        "compiled": simulator.compiled,  # False if torch.compile failed and it fell back to eager
+        "substeps": simulator.substeps,
+        "integration_step": params.simulation.integration_step,
+        "device": str(device),
+        "seconds_per_call": _significant(seconds),
+        "calls_per_timing": calls,
+        "repeats": repeats,
+        "wall_seconds_with_warmup": round(time.perf_counter() - start, 1),
+    }
+
+
+def bench_torchrl_env(params: GuidanceParameters, batch: int, compiled: bool, device: torch.device,
+                      repeats: int, min_seconds: float) -> dict:
+    """Decisions per second of the TorchRL ``GuidanceEnv`` stepped as a collector steps it."""
+    from agrl.envs.guidance import GuidanceEnv
+
+    if compiled:
+        torch._dynamo.reset()
+    env = GuidanceEnv(params, num_envs=batch, device=device, seed=0)
+    state = [env.reset()]
+
+    def one_decision():
+        carrier = state[0]
+        carrier["action"] = env.action_spec.rand()
+        _, state[0] = env.step_and_maybe_reset(carrier)
+
+    with torch.no_grad():
+        start = time.perf_counter()
+        seconds, calls = time_call(one_decision, repeats, min_seconds, warmup=3 if compiled else 1,
+                                   sync=_synchronize(device))
+    return {
+        "name": "torchrl_env_decisions_per_second",
+        "value": _significant(batch / seconds),
+        "unit": "decisions/s",
+        "batch": batch,
+        "compiled": env.simulator.compiled,
+        "substeps": env.simulator.substeps,
+        "integration_step": params.simulation.integration_step,
+        "device": str(device),
+        "seconds_per_call": _significant(seconds),
+        "calls_per_timing": calls,
+        "repeats": repeats,
+        "wall_seconds_with_warmup": round(time.perf_counter() - start, 1),
+    }
+
+
+# ---------------------------------------------------------------------------- machine and CLI
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as cpuinfo:
+            for line in cpuinfo:
+                if line.lower().startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _ram_gib() -> float | None:
+    try:
+        return round(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30, 1)
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def machine_record(device: torch.device) -> dict:
+    load = os.getloadavg() if hasattr(os, "getloadavg") else (math.nan,) * 3
+    return {
+        "name": "machine",
+        "value": torch.get_num_threads(),
+        "unit": "torch threads",
+        "cpu": _cpu_model(),
+        "cpu_count": os.cpu_count(),
+        "ram_gib": _ram_gib(),
+        "torch": torch.__version__,
+        "python": platform.python_version(),
+        "device": str(device),
+        "load_average_1min": round(load[0], 2),  # ~0 on an otherwise idle machine
+    }
+
+
+def _positive(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} is not allowed: a positive integer")
+    return value
+
+
+def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="python -m agrl.bench",
+        description="Guidance decisions per second (150 integration steps each); one JSON line each.",
+    )
+    parser.add_argument("--batch-sizes", type=_positive, nargs="+", default=None, metavar="N",
+                        help=f"simulator batch sizes (default {' '.join(map(str, FULL_BATCH_SIZES))}; "
+                             f"--quick: {' '.join(map(str, QUICK_BATCH_SIZES))})")
+    parser.add_argument("--env-batch", type=_positive, default=None, metavar="N",
+                        help="batch of the TorchRL env measurement (default 4096; --quick: 64)")
+    parser.add_argument("--repeats", type=_positive, default=None,
+                        help="timings per measurement, the median is reported (default 5; --quick: 1)")
+    parser.add_argument("--min-seconds", type=float, default=None,
+                        help="minimum length of one timing (default 1.0; --quick: 0.0, a single call)")
+    parser.add_argument("--modes", nargs="+", choices=MODES, default=None,
+                        help="eager and/or compiled (torch.compile) simulation "
+                             "(default both; --quick: eager)")
+    parser.add_argument("--device", default="cpu", help="torch device of the batched runs (default cpu)")
+    parser.add_argument("--quick", action="store_true",
+                        help="smoke test: small batches, one repeat, eager only (seconds, not minutes)")
+    args = parser.parse_args(argv)
+    quick = args.quick
+    args.batch_sizes = args.batch_sizes or list(QUICK_BATCH_SIZES if quick else FULL_BATCH_SIZES)
+    args.env_batch = args.env_batch or (64 if quick else 4096)
+    args.repeats = args.repeats or (1 if quick else 5)
+    args.min_seconds = args.min_seconds if args.min_seconds is not None else (0.0 if quick else 1.0)
+    args.modes = args.modes or (["eager"] if quick else list(MODES))
+    try:
+        args.device = torch.device(args.device)
+    except RuntimeError as error:
+        parser.error(f"--device={args.device!r} is not allowed: {error}")
+    if args.device.type == "cuda" and not torch.cuda.is_available():
+        parser.error(f"--device={args.device} is not allowed: CUDA is not available on this machine")
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parse_args(argv)
+    random.seed(0)
+    torch.manual_seed(0)
+    params = guidance_parameters(**TASK)  # the training defaults (conf/), compile chosen per measurement
+    device = args.device
+    emit(machine_record(device))
+
+    reference = bench_reference(params, args.repeats, args.min_seconds)
+    emit(reference)
+    for mode in args.modes:
+        compiled = mode == "compiled"
+        for batch in args.batch_sizes:
+            record = bench_simulator(params, batch, compiled, device, args.repeats, args.min_seconds)
+            record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
+            emit(record)
+    for mode in args.modes:
+        record = bench_torchrl_env(params, args.env_batch, mode == "compiled", device, args.repeats,
+                                   args.min_seconds)
+        record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
+        emit(record)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

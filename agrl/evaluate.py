@@ -1,0 +1,92 @@
+"""``python -m agrl.evaluate``: the paper's evaluation of a trained agent (Hydra entry point).
+
+Runs ``episodes`` deterministic episodes in one batch, prints the summary as one
+JSON object on the last line of stdout, and writes ``eval.json``, ``episodes.csv``
+and ``trajectories.png``. See ``conf/evaluate.yaml``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import hydra
+import torch
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import DictConfig, OmegaConf
+
+from agrl.config import (
+    AgentConfig,
+    ConfigError,
+    RewardConfig,
+    SimulationConfig,
+    TaskConfig,
+    load_config,
+    to_guidance_parameters,
+)
+from agrl.rl.checkpoint import CheckpointError, load_checkpoint, load_module_state, resolve_checkpoint_path
+
+
+def _structured(schema, values: dict) -> Any:
+    try:
+        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema), values))
+    except Exception as error:
+        cause = error
+        while cause is not None and not isinstance(cause, ConfigError):
+            cause = cause.__cause__ or cause.__context__
+        raise (cause or ConfigError(str(error).splitlines()[0])) from None
+
+
+def load_agent(reference: str, device: torch.device | str = "cpu"):
+    """(actor, saved config dict, path) of a checkpoint file, run directory or ``baseline``."""
+    from agrl.rl.models import make_actor
+
+    path = resolve_checkpoint_path(reference)
+    payload = load_checkpoint(path, required=("actor", "config"))
+    agent = _structured(AgentConfig, payload["config"]["agent"])
+    actor = make_actor(agent.actor_hidden, agent.activation, device)
+    load_module_state(actor, payload["actor"], path, "actor")
+    return actor.eval(), payload["config"], path
+
+
+def evaluate(cfg) -> dict[str, Any]:
+    from agrl.envs.guidance import GuidanceEnv
+    from agrl.plots import plot_trajectories
+    from agrl.rl.evaluation import instruction_latency_ms, run_episodes, summarise
+    from agrl.rl.trainer import write_evaluation
+
+    device = torch.device(cfg.device)
+    actor, saved, path = load_agent(cfg.checkpoint, device)
+    task = cfg.task if cfg.task is not None else _structured(TaskConfig, saved["task"])
+    reward = _structured(RewardConfig, saved["reward"])
+    simulation = _structured(SimulationConfig, saved["simulation"])
+    params = to_guidance_parameters(task, reward, simulation)
+    env = GuidanceEnv(params, num_envs=cfg.episodes, device=device, seed=cfg.seed)
+    records = run_episodes(env, actor, record_trajectories=cfg.trajectories > 0)
+    summary = summarise(records)
+    summary["ms_per_instruction"] = instruction_latency_ms(env, actor)
+    summary.update({"checkpoint": str(path), "task": task.name, "speed": task.speed, "radius": task.radius,
+                    "seed": cfg.seed, "trained_task": saved["task"]["name"], "method": saved["method"]["name"]})
+    output = Path(cfg.output_dir or HydraConfig.get().runtime.output_dir)
+    write_evaluation(output, summary, records)
+    if cfg.trajectories:
+        plot_trajectories(records, output / "trajectories.png", params.simulation.airspace, cfg.trajectories,
+                          title=f"{task.name} task, agent from {path.name}")
+    return summary
+
+
+@hydra.main(version_base="1.3", config_path="../conf", config_name="evaluate")
+def main(cfg: DictConfig) -> None:
+    try:
+        config = load_config(cfg)
+        summary = evaluate(config)
+    except (ConfigError, CheckpointError) as error:
+        print(f"agrl.evaluate: error: {error}", file=sys.stderr)
+        sys.exit(2)
+    print(json.dumps(summary))
+
+
+if __name__ == "__main__":
+    main()

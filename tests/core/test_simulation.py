@@ -1,0 +1,133 @@
+"""The decision simulator: compiled vs eager, frozen rows, substep count."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from agrl.core.aircraft import AircraftLimits
+from agrl.core.simulation import DecisionSimulator, SimulationParameters
+from agrl.core.termination import Outcome, SuccessTolerance
+from agrl.envs.parameters import ManeuverLoadFactors
+
+CONTROLS = ManeuverLoadFactors().controls()
+
+
+def random_batch(count: int, seed: int, near: int = 4):
+    generator = torch.Generator().manual_seed(seed)
+    u = lambda *shape: torch.rand(*shape, generator=generator)  # noqa: E731
+    limits = AircraftLimits()
+    aircraft = torch.stack(
+        (
+            u(count) * 18_000 - 9_000,
+            u(count) * 18_000 - 9_000,
+            500 + u(count) * 4_000,
+            limits.min_speed + (limits.max_speed - limits.min_speed) * u(count),
+            (u(count) * 2 - 1) * 0.4,
+            (u(count) * 2 - 1) * math.pi,
+            torch.zeros(count),
+        ),
+        dim=-1,
+    )
+    destination = torch.stack(
+        (
+            u(count) * 18_000 - 9_000,
+            u(count) * 18_000 - 9_000,
+            u(count) * 5_000,
+            (u(count) * 2 - 1) * math.pi,
+        ),
+        dim=-1,
+    )
+    # Put the first `near` aircraft right behind their destination so that they succeed mid-decision.
+    destination[:near, :2] = aircraft[:near, :2] + 300 * torch.stack(
+        (torch.cos(aircraft[:near, 5]), torch.sin(aircraft[:near, 5])), dim=-1
+    )
+    destination[:near, 2] = aircraft[:near, 2]
+    destination[:near, 3] = aircraft[:near, 5]
+    speed = 50 * u(count)
+    turn_rate = (u(count) * 2 - 1) * 0.05
+    return aircraft, destination, speed, turn_rate, generator
+
+
+def run(simulator, aircraft, destination, speed, turn_rate, actions_per_decision):
+    outcomes = []
+    for actions in actions_per_decision:
+        result = simulator(aircraft, destination, speed, turn_rate, actions)
+        aircraft, destination = result.aircraft_state, result.destination_state
+        outcomes.append(result.outcome)
+    return aircraft, destination, torch.stack(outcomes)
+
+
+def test_substeps_from_decision_period():
+    assert SimulationParameters().substeps == 150
+    assert SimulationParameters(integration_step=0.05, decision_period=1.0).substeps == 20
+    with pytest.raises(ValueError, match="whole multiple"):
+        _ = SimulationParameters(integration_step=0.07, decision_period=3.0).substeps
+
+
+def test_compiled_matches_eager():
+    count = 16
+    aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=0)
+    actions = [torch.randint(0, 7, (count,), generator=generator) for _ in range(3)]
+    params = SimulationParameters()
+    eager = run(
+        DecisionSimulator(params, CONTROLS, compile=False), aircraft, destination, speed, turn_rate, actions
+    )
+    compiled_simulator = DecisionSimulator(params, CONTROLS, compile=True)
+    compiled = run(compiled_simulator, aircraft, destination, speed, turn_rate, actions)
+    assert compiled_simulator.compiled, "torch.compile fell back to eager"
+    assert torch.equal(compiled[2], eager[2])  # outcomes
+    assert bool((eager[2] == Outcome.SUCCESS).any())  # the comparison covers frozen rows too
+    torch.testing.assert_close(compiled[0], eager[0], rtol=1e-5, atol=1e-2)  # aircraft (metres, m/s, rad)
+    torch.testing.assert_close(compiled[1], eager[1], rtol=1e-5, atol=1e-2)  # destination
+    torch.testing.assert_close(compiled[0][:, 3:], eager[0][:, 3:], rtol=1e-5, atol=1e-4)  # speeds, angles
+
+
+def test_inactive_rows_are_frozen():
+    count = 8
+    aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=1, near=0)
+    active = torch.tensor([True, False] * 4)
+    actions = torch.randint(0, 7, (count,), generator=generator)
+    simulator = DecisionSimulator(SimulationParameters(), CONTROLS, compile=False)
+    result = simulator(aircraft, destination, speed + 20, turn_rate, actions, active=active)
+    frozen = ~active
+    # Inactive rows: every field unchanged (headings were already wrapped) and no outcome.
+    torch.testing.assert_close(result.aircraft_state[frozen], aircraft[frozen], rtol=0, atol=1e-6)
+    torch.testing.assert_close(result.destination_state[frozen], destination[frozen], rtol=0, atol=1e-6)
+    assert torch.all(result.outcome[frozen] == Outcome.RUNNING)
+    # Active rows moved (aircraft always, destination at >= 20 m/s).
+    moved = (result.aircraft_state[active, :2] - aircraft[active, :2]).norm(dim=-1)
+    assert torch.all(moved > 250)
+    dest_moved = (result.destination_state[active, :2] - destination[active, :2]).norm(dim=-1)
+    assert torch.all(dest_moved > 50)
+
+
+def test_finished_row_freezes_aircraft_and_destination_together():
+    tolerance = SuccessTolerance(distance=300.0)
+    simulator = DecisionSimulator(SimulationParameters(tolerance=tolerance), CONTROLS, compile=False)
+    aircraft = torch.tensor(
+        [[-400.0, 0.0, 1_000.0, 250.0, 0.0, 0.0, 0.0], [-4_000.0, 0.0, 1_000.0, 250.0, 0.0, 0.0, 0.0]]
+    )
+    destination = torch.tensor([[0.0, 0.0, 1_000.0, 0.0], [0.0, 3_000.0, 1_000.0, 0.0]])
+    speed = torch.tensor([20.0, 20.0])  # destinations fly along +x too
+    result = simulator(aircraft, destination, speed, torch.zeros(2), torch.zeros(2, dtype=torch.int64))
+    assert result.outcome.tolist() == [Outcome.SUCCESS, Outcome.RUNNING]
+    # Closing speed 230 m/s from 400 m: inside 300 m after ceil(100 / 4.6) = 22 steps of 20 ms.
+    steps = math.ceil(100.0 / (230.0 * 0.02))
+    assert float(result.aircraft_state[0, 0]) == pytest.approx(-400.0 + 250.0 * 0.02 * steps, abs=1e-3)
+    assert float(result.destination_state[0, 0]) == pytest.approx(20.0 * 0.02 * steps, abs=1e-3)
+    # The running row flew the whole decision.
+    assert float(result.aircraft_state[1, 0]) == pytest.approx(-4_000.0 + 750.0, abs=1e-2)
+    assert float(result.destination_state[1, 0]) == pytest.approx(60.0, abs=1e-3)
+
+
+def test_headings_are_wrapped():
+    simulator = DecisionSimulator(SimulationParameters(), CONTROLS, compile=False)
+    aircraft = torch.tensor([[0.0, 0.0, 2_000.0, 100.0, 0.0, math.pi - 0.01, 0.0]])
+    destination = torch.tensor([[5_000.0, 5_000.0, 0.0, math.pi - 0.01]])
+    result = simulator(aircraft, destination, torch.tensor([20.0]), torch.tensor([0.05]), torch.tensor([1]))
+    for heading in (result.aircraft_state[0, 5], result.destination_state[0, 3]):
+        assert -math.pi <= float(heading) < math.pi
+        assert float(heading) < 0  # crossed +pi and came back as a negative angle

@@ -1,0 +1,230 @@
+"""The batched TorchRL guidance environment: specs, resets, seeding, scenario replay, state restore."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import pytest
+import torch
+from tensordict import TensorDict
+from torchrl.envs.utils import check_env_specs
+
+from agrl.core.observation import OBSERVATION_SIZE, policy_observation
+from agrl.core.termination import Outcome
+from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
+from agrl.envs.guidance import STATE_KEYS
+from agrl.envs.parameters import DestinationMotion
+
+
+def make_params(kind: MotionKind = MotionKind.FIXED, **overrides) -> GuidanceParameters:
+    destination = DestinationMotion(kind=kind, speed=20.0, radius=500.0)
+    return GuidanceParameters(destination=destination, **overrides)
+
+
+def cycling_policy(td: TensorDict) -> TensorDict:
+    """Deterministic, state-dependent actions (so rollouts differ when states differ)."""
+    td["action"] = (td["step_count"] + (td["aircraft_state"][..., 0] > 0).long() * 3) % 7
+    return td
+
+
+def assert_same(a: TensorDict, b: TensorDict, keys) -> None:
+    for key in keys:
+        assert torch.equal(a[key], b[key]), key
+
+
+@pytest.mark.parametrize("kind", list(MotionKind))
+def test_check_env_specs(kind):
+    env = GuidanceEnv(make_params(kind), num_envs=2, seed=0)
+    check_env_specs(env)
+    td = env.reset()
+    assert td["observation"].shape == (2, OBSERVATION_SIZE)
+    assert env.action_spec.shape == (2,)
+    assert env.action_spec.space.n == 7
+
+
+def test_rejects_an_empty_decision_budget():
+    with pytest.raises(ValueError, match="max_decisions"):
+        GuidanceEnv(make_params(max_decisions=0), num_envs=1, seed=0)
+
+
+def test_observation_matches_the_state():
+    env = GuidanceEnv(make_params(MotionKind.CURVED), num_envs=3, seed=1)
+    td = env.rollout(3, policy=cycling_policy, break_when_any_done=False)
+    for sub in (td, td["next"]):
+        expected = policy_observation(
+            sub["aircraft_state"],
+            sub["destination_state"],
+            sub["last_action"],
+            env.params.simulation.airspace,
+            env.params.simulation.limits,
+        )
+        torch.testing.assert_close(sub["observation"], expected)
+
+
+def test_bookkeeping_counters():
+    env = GuidanceEnv(make_params(), num_envs=1, seed=0)
+    td = env.reset(env.scenario(aircraft_state=torch.tensor([-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0])))
+    rewards = []
+    for action in (0, 0, 3, 3, 1):
+        td["action"] = torch.tensor([action])
+        td = env.step(td)
+        rewards.append(float(td["next", "reward"]))
+        td = env.step_mdp(td)
+    assert int(td["step_count"]) == 5
+    assert int(td["instruction_count"]) == 2  # 0 -> 3 and 3 -> 1
+    assert int(td["last_action"]) == 1 and int(td["action_before_last"]) == 3
+    assert float(td["episode_return"]) == pytest.approx(sum(rewards), abs=1e-5)
+
+
+def test_partial_reset_only_changes_masked_rows():
+    env = GuidanceEnv(make_params(MotionKind.IRREGULAR), num_envs=4, seed=2)
+    td = env.reset()
+    for _ in range(2):
+        td["action"] = torch.tensor([1, 2, 3, 5])
+        td = env.step_mdp(env.step(td))
+    before = td.clone()
+    mask = torch.tensor([[True], [False], [True], [False]])
+    td["_reset"] = mask
+    after = env.reset(td)
+    keep, reset = ~mask.squeeze(-1), mask.squeeze(-1)
+    for key in (*STATE_KEYS, "observation", "outcome"):
+        assert torch.equal(after[key][keep], before[key][keep]), key
+    assert after["step_count"].tolist() == [0, 2, 0, 2]
+    assert torch.all(after["episode_return"][reset] == 0)
+    assert torch.all(after["last_action"][reset] == 0)
+    assert not torch.equal(after["aircraft_state"][reset], before["aircraft_state"][reset])
+    # Fresh starts: theta = psi = phi = 0 at the task's destination start.
+    assert torch.all(after["aircraft_state"][reset][:, 4:] == 0)
+    assert torch.all(after["destination_state"][reset] == 0)
+    assert not after["done"].any()
+
+
+def test_rollout_auto_resets_done_rows():
+    env = GuidanceEnv(make_params(max_decisions=2), num_envs=2, seed=3)
+    td = env.rollout(5, policy=cycling_policy, break_when_any_done=False)
+    # Budget of 2: done at steps 2 and 4, then fresh episodes.
+    assert td["next", "done"].squeeze(-1).tolist() == [[False, True, False, True, False]] * 2
+    assert td["next", "outcome"][:, 1].tolist() == [Outcome.BUDGET_EXHAUSTED] * 2
+    assert td["next", "step_count"].tolist() == [[1, 2, 1, 2, 1]] * 2
+    assert td["step_count"].tolist() == [[0, 1, 0, 1, 0]] * 2
+
+
+@pytest.mark.parametrize("kind", [MotionKind.FIXED, MotionKind.IRREGULAR])
+def test_same_seed_same_rollouts(kind):
+    def rollout(seed):
+        env = GuidanceEnv(make_params(kind, max_decisions=3), num_envs=3, seed=seed)
+        return env.rollout(4, policy=cycling_policy, break_when_any_done=False)
+
+    first, second, other = rollout(7), rollout(7), rollout(8)
+    for key in first.keys(include_nested=True, leaves_only=True):
+        assert torch.equal(first[key], second[key]), key
+    assert not torch.equal(first["aircraft_state"], other["aircraft_state"])
+    if kind is MotionKind.IRREGULAR:
+        assert not torch.equal(first["destination_speed"], other["destination_speed"])
+
+
+def test_set_seed_restarts_the_stream():
+    env = GuidanceEnv(make_params(MotionKind.IRREGULAR), num_envs=2, seed=0)
+    env.set_seed(11)
+    first = env.reset()
+    env.set_seed(11)
+    second = env.reset()
+    assert_same(first, second, ("aircraft_state", "destination_speed", "destination_turn_rate"))
+
+
+@pytest.mark.parametrize("kind", [MotionKind.UNIFORM, MotionKind.CURVED])
+def test_scenario_replay_starts_from_the_given_conditions(kind):
+    aircraft = torch.tensor(
+        [
+            [-4_000.0, 1_000.0, 1_500.0, 180.0, 0.1, 0.5, 0.0],
+            [3_000.0, -2_000.0, 3_500.0, 220.0, -0.1, -2.0, 0.0],
+        ]
+    )
+    destination = torch.tensor([[100.0, 200.0, 300.0, 1.0], [-500.0, 600.0, 700.0, -1.0]])
+    speed = torch.tensor([15.0, 30.0])
+    turn_rate = torch.tensor([0.01, -0.02])
+
+    def replay(seed):
+        env = GuidanceEnv(make_params(kind), num_envs=2, seed=seed)
+        td = env.reset(
+            env.scenario(
+                aircraft_state=aircraft,
+                destination_state=destination,
+                destination_speed=speed,
+                destination_turn_rate=turn_rate,
+            )
+        )
+        return td, env.rollout(3, policy=cycling_policy, auto_reset=False, tensordict=td)
+
+    start, trajectory = replay(0)
+    assert torch.equal(start["aircraft_state"], aircraft)
+    assert torch.equal(start["destination_state"], destination)
+    assert torch.equal(start["destination_speed"], speed)
+    assert torch.equal(start["destination_turn_rate"], turn_rate)
+    assert start["step_count"].tolist() == [0, 0] and start["last_action"].tolist() == [0, 0]
+    # Deterministic from there, whatever the env's seed.
+    _, again = replay(123)
+    for key in trajectory.keys(include_nested=True, leaves_only=True):
+        assert torch.equal(trajectory[key], again[key]), key
+    # And the destination really moved with the given motion: 3 decisions of 3 s.
+    end = trajectory["next", "destination_state"][:, -1]
+    travelled = torch.hypot(end[:, 0] - destination[:, 0], end[:, 1] - destination[:, 1])
+    for row in range(2):
+        w, v = float(turn_rate[row]), float(speed[row])
+        chord = 2 * v / abs(w) * math.sin(abs(w) * 9.0 / 2)
+        assert float(travelled[row]) == pytest.approx(chord, rel=1e-4)
+
+
+def test_scenario_defaults_to_the_task_destination():
+    env = GuidanceEnv(make_params(MotionKind.CURVED), num_envs=2, seed=0)
+    aircraft = torch.tensor([-4_000.0, 1_000.0, 1_500.0, 180.0, 0.0, 0.0, 0.0])
+    td = env.reset(env.scenario(aircraft_state=aircraft))
+    assert torch.equal(td["aircraft_state"], aircraft.expand(2, 7))
+    assert torch.all(td["destination_state"] == 0)  # Table 1's start (0, 0, 0, 0)
+    assert td["destination_speed"].tolist() == [20.0, 20.0]
+    assert td["destination_turn_rate"].tolist() == pytest.approx([20.0 / 500.0] * 2)
+
+
+def test_restore_on_next_reset_returns_the_given_state():
+    params = make_params(MotionKind.CURVED)
+    env = GuidanceEnv(params, num_envs=3, seed=4)
+    td = env.reset()
+    for action in (1, 3):
+        td["action"] = torch.full((3,), action)
+        td = env.step_mdp(env.step(td))
+    saved = td.clone()
+
+    other = GuidanceEnv(params, num_envs=3, seed=99)
+    other.restore_on_next_reset(saved)
+    restored = other.reset()
+    assert_same(restored, saved, (*STATE_KEYS, "outcome", "done", "terminated", "observation"))
+    # Both continue identically (curved motion is deterministic).
+    saved["action"] = torch.tensor([0, 5, 6])
+    restored["action"] = torch.tensor([0, 5, 6])
+    a, b = env.step(saved)["next"], other.step(restored)["next"]
+    assert_same(a, b, (*STATE_KEYS, "reward", "outcome", "observation"))
+    # Only the next reset is affected.
+    fresh = other.reset()
+    assert fresh["step_count"].tolist() == [0, 0, 0]
+
+
+def test_no_future_warnings():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FutureWarning)
+        env = GuidanceEnv(make_params(MotionKind.UNIFORM, max_decisions=2), num_envs=2, seed=0)
+        check_env_specs(env)
+        trajectory = env.rollout(3, break_when_any_done=False)
+        td = env.reset()
+        td["_reset"] = torch.tensor([[True], [False]])
+        env.reset(td)
+    assert trajectory["next", "outcome"].shape == (2, 3)
+
+
+def test_outcomes_are_terminal_consistently():
+    env = GuidanceEnv(make_params(max_decisions=2), num_envs=4, seed=5)
+    td = env.rollout(2, policy=cycling_policy, break_when_any_done=False)
+    outcome = td["next", "outcome"]
+    done = td["next", "done"].squeeze(-1)
+    assert torch.equal(done, outcome != Outcome.RUNNING)
+    assert torch.equal(done, td["next", "terminated"].squeeze(-1))

@@ -1,0 +1,47 @@
+"""Smoke test of ``python -m agrl.bench --quick``: output format only, no timing assertions."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from agrl.bench import parse_args
+
+REQUIRED = {"name", "value", "unit"}
+
+
+def test_quick_run_prints_json_lines():
+    command = [sys.executable, "-m", "agrl.bench", "--quick", "--batch-sizes", "8", "32", "--env-batch", "8"]
+    completed = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert completed.returncode == 0, completed.stderr
+    lines = [line for line in completed.stdout.splitlines() if line.strip()]
+    records = [json.loads(line) for line in lines]  # every line is one JSON object
+    assert all(isinstance(record, dict) and REQUIRED <= set(record) for record in records)
+    names = [record["name"] for record in records]
+    assert names == [
+        "machine",
+        "reference_decisions_per_second",
+        "simulator_decisions_per_second",
+        "simulator_decisions_per_second",
+        "torchrl_env_decisions_per_second",
+    ]
+    for record in records[1:]:
+        assert record["unit"] == "decisions/s" and record["value"] > 0
+        assert record["substeps"] == 150 and record["compiled"] is False
+        assert {"batch", "device"} <= set(record)
+    assert [record["batch"] for record in records[2:]] == [8, 32, 8]
+    assert all(record["speedup_vs_reference"] > 0 for record in records[2:])
+
+
+def test_arguments():
+    full = parse_args([])
+    assert full.batch_sizes == [1024, 4096, 16384] and full.modes == ["eager", "compiled"]
+    assert full.repeats == 5 and str(full.device) == "cpu"
+    quick = parse_args(["--quick", "--repeats", "3"])
+    assert quick.modes == ["eager"] and quick.repeats == 3 and max(quick.batch_sizes) <= 256
+    for bad in (["--batch-sizes", "0"], ["--modes", "jit"], ["--repeats", "-1"]):
+        with pytest.raises(SystemExit):
+            parse_args(bad)

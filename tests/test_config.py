@@ -1,0 +1,98 @@
+"""Hydra composition of conf/ and validation by agrl.config.load_config."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+
+from agrl.config import ConfigError, TaskConfig, load_config, to_guidance_parameters
+from agrl.envs import MotionKind
+
+CONFIG_DIR = str((Path(__file__).resolve().parent.parent / "conf").resolve())
+
+
+def compose_config(*overrides: str):
+    with initialize_config_dir(config_dir=CONFIG_DIR, version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides))
+
+
+def load(*overrides: str):
+    return load_config(compose_config(*overrides))
+
+
+def test_defaults_load():
+    cfg = load()
+    assert isinstance(cfg.task, TaskConfig)
+    assert cfg.task.name == "fixed"
+    assert cfg.simulation.integration_step == pytest.approx(0.02)
+    assert cfg.simulation.decision_period == pytest.approx(3.0)
+
+
+def test_uniform_speed_flows_into_task():
+    cfg = load("task=uniform", "speed=50")
+    assert cfg.task.name == "uniform"
+    assert cfg.task.speed == 50.0
+    assert load("task=uniform", "speed=10").task.speed == 10.0
+
+
+def test_curved_radius_flows_into_task():
+    cfg = load("task=curved", "radius=500")
+    assert cfg.task.name == "curved"
+    assert cfg.task.radius == 500.0
+    assert cfg.task.speed == 20.0  # the paper's curved-motion speed
+    params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, compile=False)
+    assert params.destination.kind is MotionKind.CURVED
+    assert params.destination.radius == 500.0
+    assert params.compile is False
+    assert params.simulation.tolerance.heading == pytest.approx(
+        math.radians(cfg.simulation.heading_tolerance_deg)
+    )
+
+
+def test_unknown_task_names_the_value():
+    with pytest.raises(Exception, match="bogus"):
+        load("task=bogus")
+
+
+def test_unknown_task_name_in_group_is_a_config_error():
+    with pytest.raises(ConfigError, match="bogus"):
+        load("task=uniform", "speed=50", "task.name=bogus")
+
+
+def test_negative_uniform_speed_fails():
+    with pytest.raises(ConfigError, match=r"speed=-5") as info:
+        load("task=uniform", "speed=-5")
+    assert "\n" not in str(info.value)
+
+
+def test_zero_curved_radius_fails():
+    with pytest.raises(ConfigError, match=r"radius=0") as info:
+        load("task=curved", "radius=0")
+    assert "\n" not in str(info.value)
+
+
+def test_wrong_type_names_the_value():
+    with pytest.raises(Exception, match="abc"):
+        load("task=uniform", "speed=abc")
+
+
+@pytest.mark.parametrize(
+    "overrides,named",
+    [
+        (("reward.gamma=1.5",), "reward.gamma"),
+        (("simulation.decision_period=3.01",), "simulation.decision_period"),
+        (("simulation.min_speed=300",), "simulation.min_speed"),
+        (("simulation.initial_state.x_range=[-20000,0]",), "simulation.initial_state.x_range"),
+        (("ppo.minibatch_size=100000000",), "ppo.minibatch_size"),
+        (("task=irregular", "task.change_probability=2"), "task.change_probability"),
+    ],
+)
+def test_config_errors_are_one_line_and_name_the_key(overrides, named):
+    with pytest.raises(ConfigError) as info:
+        load(*overrides)
+    message = str(info.value)
+    assert named in message
+    assert "\n" not in message
