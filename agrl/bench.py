@@ -15,7 +15,9 @@ Every line has ``name``, ``value`` and ``unit``, plus fields such as ``batch``,
 ``compiled``, ``substeps`` and ``device``. Each figure is the median of ``--repeats``
 timings after a warm-up (compiled functions are compiled during the warm-up; each
 compiled batch size gets its own static-shape compilation, as a training run with a
-fixed ``ppo.num_envs`` does). Threads: torch's default (``torch.get_num_threads()``).
+fixed ``ppo.num_envs`` does). Threads: torch's default (``torch.get_num_threads()``) unless
+``--threads`` is given; the ``machine`` line reports them and the 1-minute load average
+(about 0 on an otherwise idle machine).
 
 Examples::
 
@@ -27,6 +29,7 @@ Examples::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -175,7 +178,7 @@ def bench_torchrl_env(params: GuidanceParameters, batch: int, compiled: bool, de
 
     if compiled:
         torch._dynamo.reset()
-    env = GuidanceEnv(params, num_envs=batch, device=device, seed=0)
+    env = GuidanceEnv(dataclasses.replace(params, compile=compiled), num_envs=batch, device=device, seed=0)
     state = [env.reset()]
 
     def one_decision():
@@ -262,6 +265,10 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--modes", nargs="+", choices=MODES, default=None,
                         help="eager and/or compiled (torch.compile) simulation "
                              "(default both; --quick: eager)")
+    parser.add_argument("--threads", type=_positive, default=None,
+                        help="torch.set_num_threads (default: torch's default, one per core). On a machine "
+                             "that other processes keep busy, 1 gives stable figures; more threads then "
+                             "wait for each other")
     parser.add_argument("--device", default="cpu", help="torch device of the batched runs (default cpu)")
     parser.add_argument("--quick", action="store_true",
                         help="smoke test: small batches, one repeat, eager only (seconds, not minutes)")
@@ -283,6 +290,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
+    if args.threads is not None:
+        torch.set_num_threads(args.threads)
     random.seed(0)
     torch.manual_seed(0)
     params = guidance_parameters(**TASK)  # the training defaults (conf/), compile chosen per measurement

@@ -181,8 +181,8 @@ class AgentConfig:
 class PPOConfig:
     num_envs: int = 512
     steps_per_env: int = 64
-    total_frames: int = 10_000_000
-    max_minutes: float = 0.0  # 0 = no wall-time limit
+    total_frames: int = 20_000_000
+    max_minutes: float = 15.0  # 0 = no wall-time limit
     epochs: int = 4
     minibatch_size: int = 512
     learning_rate: float = 5e-4
@@ -210,10 +210,11 @@ class MethodConfig:
     name: str = "scratch"
     baseline: str | None = None  # checkpoint path, or "baseline" for the shipped one
     initial_selection_factor: float = 1.0  # e at the start (Algorithm 1)
-    selection_decay: float = 0.0  # k, subtracted from e per relabelled episode
+    selection_decay: float = 1e-4  # k, subtracted from e per relabelled episode
     candidate_stride: int = 1  # consider every n-th step as a termination step t_n
-    max_candidates: int = 64  # at most this many t_n per episode (evenly spread)
+    max_candidates: int = 32  # at most this many t_n per episode (evenly spread)
     keep: str = "earliest"  # which successful candidate to keep: earliest | latest
+    use_curriculum: bool = True  # apply the root `curriculum` (off for methods that start from a baseline)
 
     def __post_init__(self) -> None:
         _require(self.name in ("scratch", "pretrained", "reuse"), "method", self.name,
@@ -246,7 +247,7 @@ class CurriculumConfig:
     as training succeeds (a reverse curriculum); evaluation always uses the full box."""
 
     enabled: bool = True
-    initial_scale: float = 0.3  # fraction of the start box (about the destination's start) at first
+    initial_scale: float = 0.15  # fraction of the start box (about the destination's start) at first
     scale_step: float = 0.1  # added to the fraction at each promotion
     promotion_success: float = 0.8  # training success rate (one iteration) that earns a promotion
 
@@ -276,7 +277,7 @@ class TrainConfig:
     resume: str | None = None
     checkpoint_interval: int = 10
     progress: bool = True
-    target_success: float = 0.0  # stop once periodic evaluation reaches this success rate (0 = never)
+    target_success: float = 0.995  # stop once periodic evaluation reaches this success rate (0 = never)
 
     def __post_init__(self) -> None:
         _require(self.device == "cpu" or self.device.startswith("cuda"), "device", self.device,

@@ -32,8 +32,9 @@ def scale_distribution(
 ) -> InitialStateDistribution:
     """Shrink the start box towards the destination's start by ``scale`` in (0, 1] (a reverse curriculum).
 
-    Horizontal ranges shrink about the destination; the altitude range keeps its
-    lower bound and shrinks its height. ``scale=1`` returns the distribution unchanged.
+    Horizontal ranges and the exclusion disc shrink about the destination; the
+    altitude range keeps its lower bound and shrinks its height. ``scale=1``
+    returns the distribution unchanged.
     """
     if not 0 < scale <= 1:
         raise ValueError(f"scale={scale} is not allowed: (0, 1]")
@@ -50,6 +51,7 @@ def scale_distribution(
         x_range=shrink(distribution.x_range, x_dest),
         y_range=shrink(distribution.y_range, y_dest),
         z_range=(z_low, z_low + scale * (z_high - z_low)),
+        min_horizontal_distance=scale * distribution.min_horizontal_distance,
     )
 
 

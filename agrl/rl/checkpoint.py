@@ -107,3 +107,16 @@ def resolve_checkpoint_path(reference: str | Path) -> Path:
             raise CheckpointError(f"{path}: run directory has no checkpoints/latest.pt")
         return candidate
     return path
+
+
+def export_agent(source: str | Path, destination: str | Path, **extra: Any) -> Path:
+    """Write a slim copy of a training checkpoint: networks, config and provenance, no optimiser or RNG.
+
+    This is what ships as ``agrl/baselines/fixed_baseline.pt`` (about a sixth of a full checkpoint).
+    """
+    source = resolve_checkpoint_path(source)
+    payload = load_checkpoint(source, required=("actor", "critic", "config"))
+    slim = {key: payload[key] for key in ("actor", "critic", "config", "config_yaml", "counters") if key in payload}
+    slim["exported_from"] = str(source)
+    slim.update(extra)
+    return save_checkpoint(slim, destination)

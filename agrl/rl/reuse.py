@@ -144,7 +144,8 @@ class PolicyReuseTransform(Transform):
         output = own if relabelled_rows is None else torch.cat([own, relabelled_rows], 0)
         if self.max_rows is not None and output.numel() > self.max_rows:
             output = output[: self.max_rows]  # drops the tail of the re-played rows only
-        relabelled_count = 0 if relabelled_rows is None else relabelled_rows.numel()
+        # Counted after the cut to ``max_rows``: the share of what the buffer really receives.
+        relabelled_count = int(output["relabelled"].sum())
         self._statistics = {
             "train/e": self.selection_factor,
             "train/reuse_fraction": relabelled_count / max(output.numel(), 1),
@@ -173,6 +174,10 @@ class PolicyReuseTransform(Transform):
         last_motion = motion.gather(1, (length - 1).clamp(min=0)[:, None, None].expand(-1, 1, 2))
         motion = torch.where(recorded[..., None], motion, last_motion)
 
+        # A row that ends inside a decision is frozen at the ending sub-step, so the destination recorded
+        # after an episode's last transition is not where it is one decision later: predict that one too.
+        recorded_after = recorded & ~next_rows["done"][index].squeeze(-1)
+
         states = [rows["destination_state"][starts]]
         after = next_rows["destination_state"][index]
         airspace = self.env.params.simulation.airspace
@@ -183,7 +188,7 @@ class PolicyReuseTransform(Transform):
                 DestinationState.from_tensor(states[-1]), motion[:, step, 0], motion[:, step, 1], period,
                 (airspace.x_min, airspace.x_max), (airspace.y_min, airspace.y_max),
             ).to_tensor()
-            states.append(torch.where(recorded[:, step, None], after[:, step], predicted))
+            states.append(torch.where(recorded_after[:, step, None], after[:, step], predicted))
         return torch.stack(states, 1), motion
 
     def _baseline_actions(self, state: TensorDictBase, predicted_destination: torch.Tensor) -> torch.Tensor:

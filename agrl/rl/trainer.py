@@ -36,6 +36,7 @@ from agrl.config import TrainConfig, to_guidance_parameters
 from agrl.core.initial_states import scale_distribution
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import GuidanceEnv
+from agrl.plots import plot_trajectories
 from agrl.rl.checkpoint import (
     CheckpointError,
     load_checkpoint,
@@ -118,7 +119,7 @@ class Trainer:
             transform=self.reuse,
         )
         self.counters = Counters()
-        if cfg.curriculum.enabled:
+        if cfg.curriculum.enabled and cfg.method.use_curriculum:
             self.counters.curriculum_scale = cfg.curriculum.initial_scale
         if resume_payload is not None:
             self._restore(resume_payload)
@@ -303,19 +304,19 @@ class Trainer:
             "train/instructions_per_episode": float(data["next", "instruction_count"][done].float().mean()),
         }
 
-    def evaluate(self, episodes: int | None = None) -> tuple[dict[str, Any], Any]:
+    def evaluate(self, episodes: int | None = None, record_trajectories: bool = False) -> tuple[dict[str, Any], Any]:
         env = self.eval_env
         if episodes is not None and episodes != env.batch_size[0]:
             env = GuidanceEnv(self.params, num_envs=episodes, device=self.device, seed=self.eval_seed)
         env.set_seed(self.eval_seed)  # the same evaluation episodes every time
-        records = run_episodes(env, self.actor)
+        records = run_episodes(env, self.actor, record_trajectories=record_trajectories)
         return summarise(records), records
 
-    def _finished(self, start: float) -> str | None:
+    def _finished(self, wall_time: float) -> str | None:
         ppo = self.cfg.ppo
         if self.counters.frames >= ppo.total_frames:
             return f"reached ppo.total_frames={ppo.total_frames}"
-        if ppo.max_minutes and (self.counters.wall_time + time.perf_counter() - start) >= 60 * ppo.max_minutes:
+        if ppo.max_minutes and wall_time >= 60 * ppo.max_minutes:
             return f"reached ppo.max_minutes={ppo.max_minutes}"
         return None
 
@@ -331,7 +332,7 @@ class Trainer:
         start = time.perf_counter()
         wall_offset = self.counters.wall_time
         self._snapshot = self._state()
-        reason = self._finished(start)
+        reason = self._finished(wall_offset)
         try:
             iterator = iter(self.collector)
             while reason is None:
@@ -384,7 +385,7 @@ class Trainer:
                                 dps=f"{metrics['time/decisions_per_second']:.0f}")
                 if not show_progress and (evaluation is not None or self.counters.iteration == 1):
                     log.info(self._progress_line(metrics))
-                reason = self._finished(start)
+                reason = self._finished(self.counters.wall_time)
                 if evaluation is not None and cfg.target_success and evaluation["success_rate"] >= cfg.target_success:
                     reason = f"periodic evaluation reached target_success={cfg.target_success}"
         except KeyboardInterrupt:
@@ -427,7 +428,7 @@ class Trainer:
 
     def final_evaluation(self) -> dict[str, Any]:
         """The paper's evaluation (``eval.episodes`` deterministic episodes) -> ``eval/eval.json``."""
-        summary, records = self.evaluate(self.cfg.eval.episodes)
+        summary, records = self.evaluate(self.cfg.eval.episodes, record_trajectories=True)
         summary["ms_per_instruction"] = instruction_latency_ms(self.eval_env, self.actor)
         summary.update({
             "task": self.cfg.task.name, "method": self.cfg.method.name, "reward": self.cfg.reward.name,
@@ -435,6 +436,8 @@ class Trainer:
             "decisions_trained": self.counters.frames, "training_wall_time_s": round(self.counters.wall_time, 1),
         })
         write_evaluation(self.run_dir / "eval", summary, records)
+        plot_trajectories(records, self.run_dir / "eval" / "trajectories.png", self.params.simulation.airspace,
+                          title=f"{self.cfg.task.name} task, {self.cfg.method.name}: 10 evaluation episodes")
         return summary
 
 

@@ -1,0 +1,180 @@
+"""``python -m agrl.report``: turn finished runs into the paper's tables and figures.
+
+    python -m agrl.report table3 runs/table3 --output docs/results/table3.md
+    python -m agrl.report moving runs/moving --output docs/results/moving.md
+
+Each run directory is found by its ``eval/eval.json``; its ``.hydra/config.yaml`` says which task, method,
+reward and seed it was, and its ``metrics.csv`` gives the training curve (success against wall time).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from agrl.plots import plot_success_against_time, read_metrics
+
+PAPER_TABLE3 = {  # success rate, average number of control times, average computational time (ms)
+    "none": (0.986, 11.31, 2.98),
+    "continuous": (0.994, 7.26, 2.89),
+    "position": (0.991, 11.52, 2.92),
+    "both": (0.995, 7.22, 2.91),
+}
+PAPER_TABLE4 = {  # uniform motion: speed -> method -> success rate
+    10: {"scratch": 0.996, "pretrained": 0.992, "reuse": 0.994},
+    20: {"scratch": 0.990, "pretrained": 0.994, "reuse": 0.992},
+    50: {"scratch": 0.994, "pretrained": 0.992, "reuse": 0.994},
+    100: {"scratch": 0.990, "pretrained": 0.991, "reuse": 0.991},
+}
+PAPER_TABLE5 = {  # curved motion: radius -> method -> success rate (the paper's 500 m scratch cell is empty)
+    500: {"scratch": None, "pretrained": 0.990, "reuse": 0.992},
+    1000: {"scratch": 0.991, "pretrained": 0.994, "reuse": 0.995},
+    2000: {"scratch": 0.994, "pretrained": 0.995, "reuse": 0.993},
+    5000: {"scratch": 0.994, "pretrained": 0.997, "reuse": 0.997},
+}
+METHOD_LABELS = {"scratch": "Training from scratch", "pretrained": "Pre-trained algorithm",
+                 "reuse": "Policy-reuse algorithm"}
+
+
+def find_runs(root: Path) -> list[dict[str, Any]]:
+    """Every finished run below ``root``: its config, evaluation and metrics file."""
+    runs = []
+    for evaluation in sorted(root.rglob("eval/eval.json")):
+        run_dir = evaluation.parent.parent
+        config_file = run_dir / ".hydra" / "config.yaml"
+        if not config_file.is_file():
+            continue
+        config = yaml.safe_load(config_file.read_text())
+        runs.append({"dir": run_dir, "config": config, "eval": json.loads(evaluation.read_text()),
+                     "metrics": run_dir / "metrics.csv"})
+    return runs
+
+
+def time_to_reach(metrics_file: Path, threshold: float, key: str = "train/success_rate") -> tuple[int, float] | None:
+    """(iteration, wall seconds) of the first row whose ``key`` reaches ``threshold``, or None."""
+    if not metrics_file.is_file():
+        return None
+    for row in read_metrics(metrics_file):
+        value = row.get(key)
+        if value is not None and value >= threshold:
+            return int(row["iteration"]), float(row["wall_time"])
+    return None
+
+
+def _mean_std(values: list[float], fmt: str) -> str:
+    values = [v for v in values if v is not None]
+    if not values:
+        return "not reached"
+    if len(values) == 1:
+        return format(values[0], fmt)
+    return f"{format(statistics.mean(values), fmt)} ± {format(statistics.stdev(values), fmt)}"
+
+
+def _reached(runs: list[dict], threshold: float) -> tuple[list, list, int]:
+    hits = [time_to_reach(run["metrics"], threshold) for run in runs]
+    iterations = [hit[0] for hit in hits if hit]
+    minutes = [hit[1] / 60 for hit in hits if hit]
+    return iterations, minutes, sum(hit is not None for hit in hits)
+
+
+def table3(runs: list[dict[str, Any]]) -> str:
+    groups: dict[str, list] = defaultdict(list)
+    for run in runs:
+        groups[run["config"]["reward"]["name"]].append(run)
+    lines = [
+        "| Reward | Seeds | Success rate | Instructions / episode | ms / instruction | Iterations to 95 % | "
+        "Minutes to 95 % | Iterations to 99 % | Minutes to 99 % | Paper: success, instructions, ms |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name in ("none", "continuous", "position", "both"):
+        group = groups.get(name, [])
+        if not group:
+            continue
+        success = [run["eval"]["success_rate"] * 100 for run in group]
+        instructions = [run["eval"]["instructions_per_episode"] for run in group]
+        latency = [run["eval"]["ms_per_instruction"] for run in group]
+        it95, min95, n95 = _reached(group, 0.95)
+        it99, min99, n99 = _reached(group, 0.99)
+        paper = PAPER_TABLE3[name]
+        lines.append(
+            f"| {name} | {len(group)} | {_mean_std(success, '.1f')} % | {_mean_std(instructions, '.2f')} | "
+            f"{_mean_std(latency, '.2f')} | {_mean_std(it95, '.0f')} ({n95}/{len(group)}) | {_mean_std(min95, '.1f')} | "
+            f"{_mean_std(it99, '.0f')} ({n99}/{len(group)}) | {_mean_std(min99, '.1f')} | "
+            f"{paper[0] * 100:.1f} %, {paper[1]}, {paper[2]} ms |"
+        )
+    return "\n".join(lines)
+
+
+def _setting(run: dict) -> tuple[str, float]:
+    task = run["config"]["task"]
+    if task["name"] == "uniform":
+        return "uniform", float(task["speed"])
+    if task["name"] == "curved":
+        return "curved", float(task["radius"])
+    return task["name"], 0.0
+
+
+def moving_tables(runs: list[dict[str, Any]], figure_dir: Path | None) -> str:
+    groups: dict[tuple, dict[str, list]] = defaultdict(lambda: defaultdict(list))
+    for run in runs:
+        groups[_setting(run)][run["config"]["method"]["name"]].append(run)
+    out = []
+    for kind, unit, paper in (("uniform", "m/s", PAPER_TABLE4), ("curved", "m", PAPER_TABLE5),
+                              ("irregular", "", {})):
+        settings = sorted(value for (task, value) in groups if task == kind)
+        if not settings:
+            continue
+        label = {"uniform": "Destination speed", "curved": "Turning radius", "irregular": "Irregular"}[kind]
+        out.append(f"### {kind.capitalize()} destination\n")
+        out.append("| Method | " + " | ".join(f"{label} {v:g} {unit}".strip() for v in settings) + " |")
+        out.append("|---|" + "---|" * len(settings))
+        for method in ("scratch", "pretrained", "reuse"):
+            cells = []
+            for value in settings:
+                group = groups[(kind, value)].get(method, [])
+                if not group:
+                    cells.append("not run")
+                    continue
+                success = _mean_std([run["eval"]["success_rate"] * 100 for run in group], ".1f")
+                _, minutes, hits = _reached(group, 0.95)
+                reference = paper.get(int(value), {}).get(method) if paper else None
+                paper_text = f"; paper {reference * 100:.1f} %" if reference else ""
+                cells.append(f"{success} % (n={len(group)}); 95 % train success after "
+                             f"{_mean_std(minutes, '.1f')} min ({hits}/{len(group)}){paper_text}")
+            out.append(f"| {METHOD_LABELS[method]} | " + " | ".join(cells) + " |")
+        out.append("")
+        if figure_dir is not None:
+            for value in settings:
+                curves = {METHOD_LABELS[m]: [run["metrics"] for run in groups[(kind, value)].get(m, [])]
+                          for m in ("scratch", "pretrained", "reuse")}
+                name = f"{kind}_{value:g}.png"
+                plot_success_against_time(curves, figure_dir / name,
+                                          title=f"{kind} destination, {label.lower()} {value:g} {unit}")
+                out.append(f"![{kind} {value:g}](figures/{name})")
+            out.append("")
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m agrl.report", description=__doc__.splitlines()[0])
+    parser.add_argument("kind", choices=("table3", "moving"))
+    parser.add_argument("root", type=Path, help="a folder containing finished runs (e.g. a multirun sweep dir)")
+    parser.add_argument("--figures", type=Path, help="folder for success-against-time figures (moving)")
+    args = parser.parse_args(argv)
+    runs = find_runs(args.root)
+    if not runs:
+        print(f"agrl.report: error: no finished runs (eval/eval.json) below {args.root}", file=sys.stderr)
+        return 2
+    print(table3(runs) if args.kind == "table3" else moving_tables(runs, args.figures))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,188 @@
+"""Shared fixtures for the training / evaluation tests.
+
+* ``tiny_args`` builds command-line overrides for tiny training runs (32 envs x 16 decisions = 512 decisions
+  per iteration, a coarse 0.1 s integration step and at most 30 decisions per episode, so that an iteration
+  and an evaluation take well under a second with the eager simulator).
+* ``compose_train`` composes ``conf/`` in-process and validates it (``agrl.config.load_config``).
+* ``run_cli`` runs ``python -m agrl.<module>`` in a subprocess (one torch thread, see below).
+* ``tiny_run`` is one real ``python -m agrl.train`` run of 4 iterations, shared by the whole session.
+
+Torch runs with one intra-op thread here (``OMP_NUM_THREADS=1`` for subprocesses, ``torch_one_thread`` in
+process): with tensors this small, two OpenMP threads on a busy 2-core machine make every layer 100x slower.
+Results are compared bitwise between processes, so both sides must use the same thread count.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+import torch
+
+CONF_DIR = (Path(__file__).resolve().parent.parent / "conf").resolve()
+
+#: Overrides of every tiny training run (``tiny_args`` replaces or adds keys).
+TINY_OVERRIDES = {
+    "ppo.num_envs": "32",
+    "ppo.steps_per_env": "16",
+    "ppo.minibatch_size": "128",
+    "ppo.epochs": "1",
+    "ppo.total_frames": "1024",
+    "ppo.max_minutes": "0",
+    "eval.interval": "0",
+    "eval.periodic_episodes": "8",
+    "eval.episodes": "16",
+    "simulation.compile": "false",
+    "simulation.integration_step": "0.1",
+    "simulation.max_decisions": "30",
+    "checkpoint_interval": "1",
+    "progress": "false",
+    "curriculum.enabled": "false",
+    "target_success": "0",
+}
+FRAMES_PER_ITERATION = 32 * 16
+
+#: The shared run: 4 iterations, periodic evaluation after iterations 2 and 4.
+TINY_RUN_ITERATIONS = 4
+TINY_RUN_CHANGES = {"ppo.total_frames": str(TINY_RUN_ITERATIONS * FRAMES_PER_ITERATION), "eval.interval": "2"}
+
+
+def _tiny_args(changes: dict[str, object] | None = None) -> list[str]:
+    values = {**TINY_OVERRIDES, **{key: str(value) for key, value in (changes or {}).items()}}
+    return [f"{key}={value}" for key, value in values.items()]
+
+
+@pytest.fixture(scope="session")
+def tiny_args():
+    """``tiny_args({"seed": 1, ...})`` -> override strings for a tiny run."""
+    return _tiny_args
+
+
+@pytest.fixture(scope="session")
+def compose_train():
+    """``compose_train(*overrides)`` -> a validated ``TrainConfig`` composed from ``conf/config.yaml``."""
+    from hydra import compose, initialize_config_dir
+
+    from agrl.config import load_config
+
+    def compose_and_load(*overrides: str):
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            return load_config(compose(config_name="config", overrides=list(overrides)))
+
+    return compose_and_load
+
+
+@pytest.fixture(scope="session")
+def compose_evaluate():
+    """``compose_evaluate(*overrides)`` -> a validated ``EvaluateConfig`` from ``conf/evaluate.yaml``."""
+    from hydra import compose, initialize_config_dir
+
+    from agrl.config import load_config
+
+    def compose_and_load(*overrides: str):
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            return load_config(compose(config_name="evaluate", overrides=list(overrides)))
+
+    return compose_and_load
+
+
+def _cli_environment() -> dict[str, str]:
+    env = dict(os.environ)
+    env.pop("HYDRA_FULL_ERROR", None)
+    env["OMP_NUM_THREADS"] = "1"
+    env["MKL_NUM_THREADS"] = "1"
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+def _cli_command(module: str, *args: str) -> list[str]:
+    # The suite's own warning policy: torchrl's 0.15 transition warnings must fail loudly.
+    return [sys.executable, "-W", "error::FutureWarning", "-m", f"agrl.{module}", *args]
+
+
+def _run_cli(module: str, *args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run(_cli_command(module, *args), cwd=cwd, env=_cli_environment(), capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def _run_cli_batch(jobs: dict[str, tuple[str, ...]], cwd: Path, timeout: float = 300):
+    """Run several ``(module, *args)`` jobs at once (each is mostly interpreter start-up and imports)."""
+    started = {}
+    for name, (module, *args) in jobs.items():
+        command = _cli_command(module, *args)
+        out, err = tempfile.TemporaryFile("w+"), tempfile.TemporaryFile("w+")
+        started[name] = (command, subprocess.Popen(command, cwd=cwd, env=_cli_environment(), stdout=out,
+                                                   stderr=err, text=True), out, err)
+    results = {}
+    try:
+        for name, (command, process, out, err) in started.items():
+            process.wait(timeout=timeout)
+            out.seek(0)
+            err.seek(0)
+            results[name] = subprocess.CompletedProcess(command, process.returncode, out.read(), err.read())
+    finally:
+        for _, process, out, err in started.values():
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+            out.close()
+            err.close()
+    return results
+
+
+@pytest.fixture(scope="session")
+def cli_workdir(tmp_path_factory) -> Path:
+    """Working directory of CLI subprocesses (so nothing lands in the repository's ``runs/``)."""
+    return tmp_path_factory.mktemp("cli_cwd")
+
+
+@pytest.fixture(scope="session")
+def run_cli(cli_workdir):
+    """``run_cli("train", *overrides)`` -> CompletedProcess of ``python -m agrl.train ...``;
+    ``run_cli.batch({"name": ("train", *overrides), ...})`` runs several at once -> {name: CompletedProcess}."""
+
+    def run(module: str, *args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+        return _run_cli(module, *args, cwd=cli_workdir, timeout=timeout)
+
+    def batch(jobs: dict[str, tuple[str, ...]], timeout: float = 300) -> dict[str, subprocess.CompletedProcess]:
+        return _run_cli_batch(jobs, cwd=cli_workdir, timeout=timeout)
+
+    run.batch = batch
+    run.command = _cli_command
+    run.environment = _cli_environment
+    run.cwd = cli_workdir
+    return run
+
+
+@pytest.fixture(scope="module")
+def torch_one_thread():
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
+@dataclass
+class TinyRun:
+    run_dir: Path
+    changes: dict[str, str]  # what ``tiny_args`` was given
+    iterations: int
+    overrides: list[str]
+    stdout: str
+    stderr: str
+
+
+@pytest.fixture(scope="session")
+def tiny_run(tmp_path_factory, cli_workdir) -> TinyRun:
+    """One real ``python -m agrl.train`` run (4 iterations, seed 0); treat its directory as read-only."""
+    run_dir = tmp_path_factory.mktemp("tiny_run") / "run"
+    overrides = _tiny_args(TINY_RUN_CHANGES)
+    result = _run_cli("train", *overrides, f"hydra.run.dir={run_dir}", cwd=cli_workdir)
+    assert result.returncode == 0, f"tiny training run failed:\n{result.stdout[-3000:]}\n{result.stderr[-3000:]}"
+    return TinyRun(run_dir=run_dir, changes=dict(TINY_RUN_CHANGES), iterations=TINY_RUN_ITERATIONS,
+                   overrides=overrides, stdout=result.stdout, stderr=result.stderr)

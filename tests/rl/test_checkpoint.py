@@ -1,0 +1,165 @@
+"""Checkpoints: atomic save, round trip into ``agrl.evaluate.load_agent``, and one-line errors for bad files."""
+
+from __future__ import annotations
+
+import random
+
+import pytest
+import torch
+from torchrl.envs import ExplorationType, set_exploration_type
+
+from agrl.config import to_guidance_parameters
+from agrl.core.observation import OBSERVATION_SIZE
+from agrl.envs.guidance import GuidanceEnv
+from agrl.evaluate import load_agent
+from agrl.rl.checkpoint import (
+    FORMAT_VERSION,
+    CheckpointError,
+    load_checkpoint,
+    resolve_checkpoint_path,
+    save_checkpoint,
+)
+from agrl.rl.trainer import Trainer
+
+pytestmark = pytest.mark.usefixtures("torch_one_thread")
+
+
+@pytest.fixture(scope="module")
+def small_trainer(tmp_path_factory, compose_train, tiny_args):
+    """A Trainer with a non-default actor (one hidden layer of 32) after one iteration; its run directory."""
+    config = compose_train(*tiny_args({"agent.actor_hidden": "[32]", "ppo.total_frames": 512,
+                                       "eval.episodes": 4}))
+    trainer = Trainer(config, tmp_path_factory.mktemp("small_actor") / "run")
+    trainer.train()
+    return trainer
+
+
+def deterministic_actions(actor, observations: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    from tensordict import TensorDict
+
+    td = TensorDict({"observation": observations}, batch_size=observations.shape[:1])
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        td = actor(td)
+    return td["action"], td["logits"]
+
+
+# ---------------------------------------------------------------------------- round trip
+def test_loaded_actor_acts_like_the_trainers_actor(small_trainer):
+    trainer = small_trainer
+    actor, saved, path = load_agent(str(trainer.run_dir))  # a run directory -> checkpoints/latest.pt
+    assert path == trainer.run_dir / "checkpoints" / "latest.pt"
+    assert saved["agent"]["actor_hidden"] == [32]
+    assert not actor.training
+
+    # Observations the policy meets (a fresh batch of episode starts) plus arbitrary ones.
+    env = GuidanceEnv(to_guidance_parameters(trainer.cfg.task, trainer.cfg.reward, trainer.cfg.simulation),
+                      num_envs=64, seed=11)
+    generator = torch.Generator().manual_seed(3)
+    observations = torch.cat([env.reset()["observation"],
+                              3 * torch.randn(256, OBSERVATION_SIZE, generator=generator)])
+    expected_actions, expected_logits = deterministic_actions(trainer.actor, observations)
+    actions, logits = deterministic_actions(actor, observations)
+    assert torch.equal(logits, expected_logits)
+    assert torch.equal(actions, expected_actions)
+    assert torch.equal(actions, expected_logits.argmax(-1))
+    assert actions.unique().numel() > 1  # the comparison is not between two constant policies
+
+
+def test_save_is_atomic_and_stamps_format_and_versions(tmp_path):
+    path = tmp_path / "nested" / "state.pt"
+    save_checkpoint({"actor": {"w": torch.arange(3.0)}}, path)
+    payload = load_checkpoint(path)
+    assert payload["format_version"] == FORMAT_VERSION
+    assert {"agrl", "torch", "torchrl", "tensordict"} <= set(payload["versions"])
+    assert torch.equal(payload["actor"]["w"], torch.arange(3.0))
+
+    # A payload that cannot be written leaves the previous file intact and no temporary file behind.
+    with pytest.raises(Exception):
+        save_checkpoint({"actor": {"w": torch.zeros(1)}, "unpicklable": lambda: None}, path)
+    assert torch.equal(load_checkpoint(path)["actor"]["w"], torch.arange(3.0))
+    assert sorted(p.name for p in path.parent.iterdir()) == ["state.pt"]
+
+
+def test_missing_required_entries_are_named(tmp_path):
+    path = save_checkpoint({"actor": {}}, tmp_path / "partial.pt")
+    with pytest.raises(CheckpointError, match="lacks critic, optimizer") as raised:
+        load_checkpoint(path, required=("actor", "critic", "optimizer"))
+    assert str(path) in str(raised.value)
+
+
+# ---------------------------------------------------------------------------- corrupt files
+def write_bad_file(kind: str, directory, good_checkpoint) -> object:
+    path = directory / f"{kind}.pt"
+    if kind == "truncated":
+        data = good_checkpoint.read_bytes()
+        path.write_bytes(data[: len(data) // 2])
+    elif kind == "random-bytes":
+        path.write_bytes(random.Random(5).randbytes(4096))
+    elif kind == "empty":
+        path.write_bytes(b"")
+    elif kind == "foreign-torch-file":
+        torch.save({"actor": torch.nn.Linear(2, 2).state_dict()}, path)  # a torch file, but not ours
+    elif kind == "bare-tensor":
+        torch.save(torch.zeros(3), path)
+    # "missing": nothing written
+    return path
+
+
+@pytest.mark.parametrize(
+    ("kind", "reason"),
+    [("truncated", "not a readable checkpoint"), ("random-bytes", "not a readable checkpoint"),
+     ("empty", "not a readable checkpoint"), ("foreign-torch-file", "not an agrl checkpoint"),
+     ("bare-tensor", "not an agrl checkpoint"), ("missing", "no such checkpoint file")],
+)
+def test_bad_checkpoint_is_a_one_line_error_naming_the_file(tmp_path, small_trainer, kind, reason):
+    path = write_bad_file(kind, tmp_path, small_trainer.checkpoint_dir / "latest.pt")
+    for load in (load_checkpoint, load_agent):
+        with pytest.raises(CheckpointError) as raised:
+            load(str(path))
+        message = str(raised.value)
+        assert "\n" not in message
+        assert message.startswith(f"{path}: ")
+        assert reason in message
+
+
+def test_run_directory_without_checkpoint_is_named(tmp_path):
+    with pytest.raises(CheckpointError, match="run directory has no checkpoints/latest.pt") as raised:
+        resolve_checkpoint_path(tmp_path)
+    assert str(tmp_path) in str(raised.value)
+
+
+# ---------------------------------------------------------------------------- mismatched networks
+def test_pretrained_from_a_differently_sized_actor_is_a_one_line_error(small_trainer, compose_train, tiny_args,
+                                                                      tmp_path):
+    baseline = small_trainer.checkpoint_dir / "latest.pt"
+    config = compose_train(*tiny_args(), "method=pretrained", f"method.baseline={baseline}")
+    assert config.agent.actor_hidden == [128, 128]
+    with pytest.raises(CheckpointError) as raised:
+        Trainer(config, tmp_path / "run")
+    message = str(raised.value)
+    assert "\n" not in message
+    assert message.startswith(f"{baseline}: the actor network does not match")
+
+
+def test_pretrained_mismatch_via_cli_exits_2(small_trainer, run_cli, tiny_args, tmp_path):
+    baseline = small_trainer.checkpoint_dir / "latest.pt"
+    result = run_cli("train", *tiny_args(), "method=pretrained", f"method.baseline={baseline}",
+                     f"hydra.run.dir={tmp_path / 'run'}")
+    assert result.returncode == 2, result.stderr[-3000:]
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, lines
+    assert lines[0].startswith(f"agrl.train: error: {baseline}: the actor network does not match")
+
+
+def test_pretrained_from_a_matching_checkpoint_copies_its_weights(small_trainer, compose_train, tiny_args,
+                                                                 tmp_path):
+    baseline = small_trainer.checkpoint_dir / "latest.pt"
+    config = compose_train(*tiny_args({"agent.actor_hidden": "[32]"}), "method=pretrained",
+                           f"method.baseline={baseline}")
+    trainer = Trainer(config, tmp_path / "run")
+    saved = load_checkpoint(baseline)
+    for name, value in trainer.actor.state_dict().items():
+        assert torch.equal(value, saved["actor"][name]), name
+    for name, value in trainer.critic.state_dict().items():
+        assert torch.equal(value, saved["critic"][name]), name
+    trainer.collector.shutdown()

@@ -1,0 +1,638 @@
+"""Policy reuse by destination position prediction (the paper's Algorithm 1) as a replay-buffer transform.
+
+The episodes are hand-built: the start box is a line, so every episode (and every auto-reset inside the
+collector) starts from the same kind of scenario: the destination at the origin moving along +x at 50 m/s,
+the aircraft 4-6 km behind it at 100 m altitude, flying the same way at 200 m/s. A baseline that flies straight and
+accelerates while far from its target reaches the destination in about eight decisions; the agent being
+trained (random weights) mostly dives out of the airspace, so its batch holds short, long and truncated
+episodes.
+
+The collector rows get what the trainer gives them (GAE with a critic, then ``reshape(-1)``) and the transform
+gets a ``ppo_targets`` like the trainer's (current-actor log-probability of the action, then GAE), which also
+keeps a copy of the full re-played trajectories it receives (the buffer only keeps PPO's keys).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import torch
+from tensordict import TensorDict
+from tensordict.nn import TensorDictModule
+from torchrl.collectors import Collector
+from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
+from torchrl.envs import ExplorationType, set_exploration_type
+from torchrl.modules import ProbabilisticActor
+from torchrl.objectives.value import GAE
+
+from agrl.core.initial_states import InitialStateDistribution
+from agrl.core.observation import policy_observation
+from agrl.core.reward import potential, step_reward
+from agrl.core.termination import Outcome
+from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
+from agrl.envs.parameters import DestinationMotion
+from agrl.rl.checkpoint import save_checkpoint
+from agrl.rl.models import make_actor, make_critic
+from agrl.rl.reuse import PPO_KEYS, TRAJECTORY_KEY, PolicyReuseTransform, candidate_steps
+
+BUDGET = 20  # decisions per episode: keeps the eager simulation cheap
+NUM_ENVS = 4
+STEP = 150.0  # m the 50 m/s destination moves in one 3 s decision
+START = ((-6_000.0, -4_000.0), 0.0, 100.0)  # the aircraft's start: x range, y, z (m); heading +x, 200 m/s
+FAR = 3_000.0  # m: the hand-built baseline accelerates while its target is farther than this
+
+STEADY, LEFT, RIGHT, ACCELERATE, DECELERATE, PULL_UP, PUSH_OVER = range(7)
+OWN_KEYS = [key for key in PPO_KEYS if key != "relabelled"]
+
+
+# ---------------------------------------------------------------------------- stand-in agents and data
+def params(kind: MotionKind = MotionKind.UNIFORM, start=START) -> GuidanceParameters:
+    (x_low, x_high), y, z = start
+    return GuidanceParameters(
+        destination=DestinationMotion(kind=kind, speed=50.0),
+        initial_state=InitialStateDistribution(
+            x_range=(x_low, x_high), y_range=(y, y), z_range=(z, z), speed_range=(200.0, 200.0)
+        ),
+        max_decisions=BUDGET,
+        compile=False,
+    )
+
+
+class PursuitLogits(torch.nn.Module):
+    """A hand-built fixed-destination agent B: turn towards the target, accelerate while it is far."""
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        distance = observation[..., 0] * 10_000.0  # feature 0 is distance / airspace half-width
+        bearing_sin, bearing_cos = observation[..., 1], observation[..., 2]
+        turn = torch.where(bearing_sin > 0, LEFT, RIGHT)  # left turns increase the heading
+        action = torch.where(bearing_cos < 0.99, turn, torch.where(distance > FAR, ACCELERATE, STEADY))
+        return 10.0 * torch.nn.functional.one_hot(action, 7).float()
+
+
+class ConstantLogits(torch.nn.Module):
+    def __init__(self, action: int):
+        super().__init__()
+        self.action = action
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        logits = torch.zeros(*observation.shape[:-1], 7)
+        logits[..., self.action] = 5.0
+        return logits
+
+
+def as_actor(network: torch.nn.Module) -> ProbabilisticActor:
+    return ProbabilisticActor(
+        TensorDictModule(network, in_keys=["observation"], out_keys=["logits"]),
+        in_keys=["logits"], out_keys=["action"], distribution_class=torch.distributions.Categorical,
+        return_log_prob=True,
+    )
+
+
+def baseline_argmax(observation: torch.Tensor) -> torch.Tensor:
+    """What the pursuit baseline picks in mode (deterministic) on ``observation``."""
+    return PursuitLogits()(observation).argmax(-1)
+
+
+class Collected:
+    """One collector batch of agent Z on a hand-built task, with GAE, as the trainer prepares it."""
+
+    def __init__(self, kind: MotionKind, start=START, seed: int = 0):
+        torch.manual_seed(seed)
+        self.env = GuidanceEnv(params(kind, start), num_envs=NUM_ENVS, seed=seed)
+        self.actor = make_actor([32, 32], "tanh")
+        self.critic = make_critic([32, 32], "tanh")
+        self.gae = GAE(gamma=0.99, lmbda=0.95, value_network=self.critic, average_gae=False)
+        collector = Collector(self.env, self.actor, frames_per_batch=NUM_ENVS * BUDGET, total_frames=-1,
+                              auto_register_policy_transforms=False)
+        data = next(iter(collector))
+        collector.shutdown()
+        with torch.no_grad():
+            self.data = self.gae(data)
+        self.received: list[TensorDict] = []
+
+    def flat(self) -> TensorDict:
+        return self.data.clone().reshape(-1)
+
+    @torch.no_grad()
+    def ppo_targets(self, trajectories):
+        """The trainer's ``_ppo_targets`` (current-actor log-prob, GAE), keeping a copy of its input."""
+        self.received.append(trajectories.clone())
+        trajectories["action_log_prob"] = self.actor.get_dist(trajectories).log_prob(trajectories["action"])
+        return self.gae(trajectories)
+
+    def transform(self, baseline=None, **kwargs) -> PolicyReuseTransform:
+        kwargs.setdefault("max_candidates", BUDGET)
+        return PolicyReuseTransform(baseline if baseline is not None else as_actor(PursuitLogits()), self.env,
+                                    ppo_targets=self.ppo_targets, **kwargs)
+
+
+@pytest.fixture(scope="module")
+def uniform(torch_one_thread) -> Collected:
+    return Collected(MotionKind.UNIFORM)
+
+
+class Relabelled:
+    """One ``relabel`` call with the pursuit baseline (keep the earliest successful t_n), and what it saw."""
+
+    def __init__(self, collected: Collected):
+        self.collected = collected
+        self.flat = collected.flat()
+        self.input = self.flat.clone()
+        self.transform = collected.transform()
+        collected.received.clear()
+        self.out = self.transform.relabel(self.flat)
+        assert len(collected.received) == 1, "ppo_targets is called once, on all re-played episodes"
+        self.trajectories = collected.received[0]
+        self.lengths = episode_lengths(self.trajectories)
+        self.starts = starts_of(self.flat)
+
+
+@pytest.fixture(scope="module")
+def relabelled(uniform) -> Relabelled:
+    return Relabelled(uniform)
+
+
+@pytest.fixture(scope="module")
+def fixed(torch_one_thread) -> Collected:
+    # 3 km from a fixed destination: flying straight, the baseline arrives at the fourth decision.
+    return Collected(MotionKind.FIXED, start=((-3_000.0, -3_000.0), 0.0, 100.0))
+
+
+def episode_lengths(trajectories: TensorDict) -> torch.Tensor:
+    """Decisions up to and including the first terminal one, per re-played episode."""
+    done = trajectories["next", "done"].squeeze(-1)
+    assert bool(done.any(-1).all()), "every stored re-played episode must end"
+    return done.long().argmax(-1) + 1
+
+
+def replay_in_fresh_env(start: TensorDict, actions: torch.Tensor, kind: MotionKind) -> TensorDict:
+    """An independent rollout: a new env started from ``start``'s scenario, stepping ``actions`` (E, T)."""
+    episodes, steps = actions.shape
+    env = GuidanceEnv(params(kind), num_envs=episodes, seed=123)
+    td = env.reset(env.scenario(
+        aircraft_state=start["aircraft_state"], destination_state=start["destination_state"],
+        destination_speed=start["destination_speed"], destination_turn_rate=start["destination_turn_rate"],
+    ))
+    out = []
+    for step in range(steps):
+        td["action"] = actions[:, step]
+        td = env.step(td)
+        out.append(td.clone())
+        td = env.step_mdp(td)
+    return torch.stack(out, 1)
+
+
+def own_rows(rows: TensorDict) -> TensorDict:
+    """What the buffer gets for rows that are not relabelled: PPO's keys, flagged as the agent's own."""
+    return rows.select(*OWN_KEYS).set("relabelled", torch.zeros(rows.numel(), dtype=torch.bool))
+
+
+def starts_of(rows: TensorDict) -> torch.Tensor:
+    return (rows["step_count"] == 0).nonzero().squeeze(-1)
+
+
+# ---------------------------------------------------------------------------- the candidate grid
+@pytest.mark.parametrize(
+    ("budget", "stride", "cap"),
+    [(20, 1, 64), (20, 1, 4), (20, 3, 64), (200, 1, 64), (200, 7, 10), (200, 1, 2), (5, 5, 3), (201, 4, 50)],
+)
+def test_candidate_steps_grid(budget, stride, cap):
+    grid = candidate_steps(budget, stride, cap)
+    full = list(range(stride, budget + 1, stride))
+    assert grid.dtype == torch.int64
+    assert grid.numel() == min(cap, len(full))
+    assert bool((grid % stride == 0).all()), "candidates lie on the stride"
+    assert bool((grid >= stride).all()) and bool((grid <= budget).all()), "within [stride, budget]"
+    assert bool((grid[1:] > grid[:-1]).all()), "strictly increasing, no duplicates"
+    assert int(grid[0]) == full[0] and int(grid[-1]) == full[-1], "the grid spans the whole budget"
+    if cap >= len(full):
+        assert grid.tolist() == full
+    else:  # evenly spread: no gap is more than one stride wider than another
+        gaps = grid.diff()
+        assert int(gaps.max() - gaps.min()) <= stride
+
+
+def test_transform_uses_the_grid_of_its_env(uniform):
+    transform = uniform.transform(candidate_stride=3, max_candidates=4)
+    assert transform.candidates.tolist() == candidate_steps(BUDGET, 3, 4).tolist()
+
+
+# ---------------------------------------------------------------------------- the hand-built episode
+def test_relabelled_tuples_carry_the_real_destination_trajectory(relabelled):
+    flat, out, trajectories = relabelled.flat, relabelled.out, relabelled.trajectories
+    starts = relabelled.starts
+    assert (flat == relabelled.input).all(), "relabel does not write into its input"
+    assert trajectories.shape[0] == starts.numel(), "every episode starting in the batch was relabelled"
+    assert starts.numel() > NUM_ENVS, "some episodes start mid-batch (after the agent's own failures)"
+    lengths = relabelled.lengths
+    steps = int(lengths.max())
+    actions = trajectories["action"][:, :steps]
+
+    real = replay_in_fresh_env(flat[starts], actions, MotionKind.UNIFORM)
+    for episode in range(starts.numel()):
+        length = int(lengths[episode])
+        got, want = trajectories[episode, :length], real[episode, :length]
+        for key in ("aircraft_state", "destination_state", "observation", "last_action", "step_count"):
+            torch.testing.assert_close(got[key], want[key], msg=key)
+        for key in ("aircraft_state", "destination_state", "observation", "reward", "done", "terminated",
+                    "outcome", "episode_return"):
+            torch.testing.assert_close(got["next", key], want["next", key], msg=f"next {key}")
+        # The destination fields are the destination's own trajectory: straight along +x at 50 m/s, not the
+        # predicted (fixed) point the baseline was steered by. Success freezes it inside the last decision.
+        x = torch.cat((got["destination_state"][:, 0], got["next", "destination_state"][-1:, 0]))
+        torch.testing.assert_close(x[:-1], STEP * torch.arange(length, dtype=torch.float32))
+        assert 0 < float(x[-1] - x[-2]) <= STEP + 1e-3
+        torch.testing.assert_close(got["destination_state"][:, 1:], torch.zeros(length, 3))
+
+    # What the buffer receives for those rows is exactly these transitions, episode after episode.
+    relabelled = out[out["relabelled"]]
+    valid = torch.arange(trajectories.shape[1])[None, :] < lengths[:, None]
+    torch.testing.assert_close(relabelled["observation"], trajectories["observation"][valid])
+    assert torch.equal(relabelled["action"], trajectories["action"][valid])
+
+
+def test_actions_are_the_baselines_on_the_predicted_destination(relabelled):
+    flat, trajectories, lengths = relabelled.flat, relabelled.trajectories, relabelled.lengths
+    uniform, transform, starts = relabelled.collected, relabelled.transform, relabelled.starts
+    # The kept termination step t_n of each episode (the transform's own search; deterministic).
+    prediction, motion = transform._destination_prediction(flat, starts, flat.get(TRAJECTORY_KEY))
+    _, winner = transform._search(flat[starts], prediction, motion)
+    assert bool((winner >= 0).all())
+    target_step = transform.candidates[winner]
+    # The prediction at t_n is where the destination really is at t_n (equation 19: it ignores the aircraft).
+    expected_target = torch.zeros(starts.numel(), 4)
+    expected_target[:, 0] = STEP * target_step.float()
+    torch.testing.assert_close(prediction[torch.arange(starts.numel()), target_step], expected_target)
+
+    simulation = uniform.env.params.simulation
+    differs = 0
+    for episode in range(starts.numel()):
+        rows = trajectories[episode, : int(lengths[episode])]
+        # Equation 20: the destination fields replaced by the destination state at t_n.
+        target = expected_target[episode].expand(rows.shape[0], 4)
+        observed = policy_observation(rows["aircraft_state"], target, rows["last_action"],
+                                      simulation.airspace, simulation.limits)
+        assert torch.equal(rows["action"], baseline_argmax(observed))
+        differs += int((baseline_argmax(rows["observation"]) != rows["action"]).sum())
+    assert differs > 0, "the scenario must tell the predicted destination from the real one"
+
+
+def test_baseline_acts_by_its_mode_on_the_predicted_destination(uniform):
+    """B's action is the argmax of its logits on the rewritten observation, never a sample."""
+    torch.manual_seed(5)
+    baseline = make_actor([16], "tanh")
+    with torch.no_grad():
+        baseline.module[0].module[-1].weight.mul_(300.0)  # undo make_actor's near-uniform output layer
+    transform = uniform.transform(baseline)
+    flat = uniform.flat()
+    count = flat.numel()
+    predicted = torch.stack((torch.linspace(-8e3, 8e3, count), torch.linspace(5e3, -5e3, count),
+                             torch.full((count,), 1e3), torch.linspace(-3, 3, count)), -1)
+    simulation = uniform.env.params.simulation
+    observed = policy_observation(flat["aircraft_state"], predicted, flat["last_action"], simulation.airspace,
+                                  simulation.limits)
+    logits = baseline.module[0](TensorDict({"observation": observed}, [flat.numel()]))["logits"]
+    assert float(logits.softmax(-1).max(-1).values.median()) < 0.9, "sampling would be seen"
+    with set_exploration_type(ExplorationType.RANDOM):  # whatever the caller's setting
+        for _ in range(3):
+            assert torch.equal(transform._baseline_actions(flat, predicted), logits.argmax(-1))
+
+
+def test_success_ends_each_relabelled_episode_and_gae_does_not_look_past_it(relabelled):
+    out, trajectories, lengths = relabelled.out, relabelled.trajectories, relabelled.lengths
+    index = torch.arange(trajectories.shape[0])
+    last = trajectories[index, lengths - 1]
+    assert bool((last["next", "outcome"] == Outcome.SUCCESS).all()), "the stored episode ends at a success"
+    before = torch.arange(trajectories.shape[1])[None, :] < (lengths - 1)[:, None]
+    assert not bool(trajectories["next", "done"].squeeze(-1)[before].any()), "nothing terminal before it"
+    rows = out[out["relabelled"]]
+    assert rows.numel() == int(lengths.sum()), "no row after the success is stored"
+    # Episode by episode the last stored row is the success step: its target is the reward, no bootstrap.
+    ends = lengths.cumsum(0) - 1
+    torch.testing.assert_close(rows["value_target"][ends], last["next", "reward"])
+    torch.testing.assert_close(rows["advantage"][ends], last["next", "reward"] - rows["state_value"][ends])
+    # The behaviour log-probability is the current actor's for B's action (PPO's ratio starts at 1).
+    expected = relabelled.collected.actor.get_dist(rows).log_prob(rows["action"])
+    torch.testing.assert_close(rows["action_log_prob"], expected)
+
+
+def test_rewards_are_the_environments_for_the_real_destination(relabelled):
+    """Equation 5 on the real destination fields (the independent env replay checks the same numbers)."""
+    trajectories, lengths = relabelled.trajectories, relabelled.lengths
+    reward_params = relabelled.collected.env.params.reward
+
+    def phi(state, terminal):
+        return potential(state["aircraft_state"], state["destination_state"], state["last_action"],
+                         state["action_before_last"], terminal, reward_params)
+
+    for episode in range(trajectories.shape[0]):
+        rows = trajectories[episode, : int(lengths[episode])]
+        terminal = rows["next", "done"].squeeze(-1)
+        expected = step_reward(rows["next", "outcome"], phi(rows, torch.zeros_like(terminal)),
+                               phi(rows["next"], terminal), reward_params)
+        torch.testing.assert_close(rows["next", "reward"].squeeze(-1), expected)
+        assert float(rows["next", "reward"][-1]) > 10.0, "the success pays c1"
+
+
+# ---------------------------------------------------------------------------- what is kept
+def test_own_rows_of_untouched_episodes_are_kept_verbatim(uniform):
+    flat = uniform.flat()
+    transform = uniform.transform(initial_selection_factor=0.5, seed=3)
+    out = transform.relabel(flat)
+    stats = transform.last_statistics()
+    starts = starts_of(flat)
+    assert 0 < stats["train/reuse_episodes_relabelled"] < starts.numel(), "a mixed batch"
+    own = out[~out["relabelled"]]
+    assert bool(out["relabelled"][own.numel():].all()), "own rows first, then the re-played ones"
+    # Match each own row to its collector row (observations are continuous: exact matches are unique).
+    same = (own["observation"][:, None] == flat["observation"][None]).all(-1) & (
+        own["action"][:, None] == flat["action"][None])
+    assert bool((same.sum(-1) == 1).all())
+    source = same.long().argmax(-1)
+    assert bool((source.diff() > 0).all()), "in the collector's order"
+    for key in OWN_KEYS:
+        assert torch.equal(own[key], flat[key][source]), key
+    # Whole episodes are dropped, exactly the relabelled ones, each starting in this batch.
+    traj_ids = flat.get(TRAJECTORY_KEY)
+    dropped = set(traj_ids.tolist()) - set(traj_ids[source].tolist())
+    assert len(dropped) == stats["train/reuse_episodes_relabelled"]
+    assert dropped <= set(traj_ids[starts].tolist())
+    assert set(traj_ids[source].tolist()).isdisjoint(dropped)
+    kept_ids = torch.tensor(sorted(set(traj_ids.tolist()) - dropped))
+    assert source.numel() == int(torch.isin(traj_ids, kept_ids).sum())
+
+
+def test_a_baseline_that_never_succeeds_leaves_the_batch_unchanged(uniform):
+    flat = uniform.flat()
+    transform = uniform.transform(as_actor(ConstantLogits(PUSH_OVER)))  # dives into the ground
+    out = transform.relabel(flat)
+    stats = transform.last_statistics()
+    assert stats["train/reuse_episodes_selected"] == starts_of(flat).numel()
+    assert stats["train/reuse_episodes_relabelled"] == 0 and stats["train/reuse_fraction"] == 0.0
+    assert (out == own_rows(flat)).all()
+
+
+# ---------------------------------------------------------------------------- the selection factor e
+def test_with_e_zero_nothing_is_relabelled(uniform):
+    flat = uniform.flat()
+    uniform.received.clear()
+    transform = uniform.transform(initial_selection_factor=0.0, selection_decay=0.1)
+    out = transform.relabel(flat)
+    expected = own_rows(flat)
+    assert out.batch_size == flat.batch_size
+    assert set(out.keys()) == set(PPO_KEYS)
+    assert (out == expected).all()
+    assert uniform.received == [], "no episode was re-played"
+    assert transform.last_statistics()["train/e"] == 0.0
+    assert transform.last_statistics()["train/reuse_fraction"] == 0.0
+    assert transform.last_statistics()["train/reuse_episodes_selected"] == 0
+
+
+def test_e_drops_by_k_per_selected_episode_and_stops_at_zero(uniform):
+    flat = uniform.flat()
+    episodes = starts_of(flat).numel()
+    never = as_actor(ConstantLogits(PUSH_OVER))  # cheap: its candidates end after a decision or two
+    transform = uniform.transform(never, initial_selection_factor=1.0, selection_decay=0.05)
+    transform.relabel(flat)
+    stats = transform.last_statistics()
+    assert stats["train/reuse_episodes_selected"] == episodes, "e = 1 selects every episode"
+    assert stats["train/e"] == pytest.approx(1.0 - 0.05 * episodes)
+    assert transform.selection_factor == pytest.approx(1.0 - 0.05 * episodes)
+
+    # Fractional e: the decay counts the episodes actually selected (u < e), whether or not they succeed.
+    for _ in range(3):
+        before = transform.selection_factor
+        transform.relabel(flat)
+        stats = transform.last_statistics()
+        assert 0 <= stats["train/reuse_episodes_selected"] <= episodes
+        selected = stats["train/reuse_episodes_selected"]
+        assert stats["train/e"] == pytest.approx(max(0.0, before - 0.05 * selected))
+
+    floor = uniform.transform(never, initial_selection_factor=1.0, selection_decay=0.3)
+    assert floor.selection_factor == 1.0, "e starts at initial_selection_factor"
+    floor.relabel(flat)  # 1 - 0.3 * episodes < 0
+    assert floor.selection_factor == 0.0 and floor.last_statistics()["train/e"] == 0.0
+    floor.relabel(flat)
+    assert floor.last_statistics()["train/reuse_episodes_selected"] == 0
+    assert floor.selection_factor == 0.0
+
+
+def test_selection_is_seeded_and_restored_from_state_dict(uniform):
+    flat = uniform.flat()
+    never = as_actor(ConstantLogits(PUSH_OVER))
+    a = uniform.transform(never, initial_selection_factor=0.6, selection_decay=0.01, seed=7)
+    a.relabel(flat)
+    saved = a.state_dict()
+    a.relabel(flat)
+    b = uniform.transform(never, initial_selection_factor=1.0, selection_decay=0.01, seed=0)
+    b.load_state_dict(saved)
+    b.relabel(flat)
+    assert a.last_statistics()["train/reuse_episodes_selected"] == b.last_statistics()[
+        "train/reuse_episodes_selected"]
+    assert a.selection_factor == b.selection_factor
+
+
+@pytest.mark.parametrize("max_rows", [None, 40])
+def test_reuse_fraction_is_the_share_of_relabelled_rows_in_the_output(relabelled, max_rows):
+    if max_rows is None:
+        transform, out = relabelled.transform, relabelled.out
+    else:  # the buffer's cap cuts re-played rows: the statistic describes what is stored
+        transform = relabelled.collected.transform(max_rows=max_rows)
+        out = transform.relabel(relabelled.flat)
+    stats = transform.last_statistics()
+    assert stats["train/reuse_episodes_relabelled"] > 0
+    assert max_rows is None or out.numel() == max_rows
+    assert stats["train/reuse_fraction"] == pytest.approx(float(out["relabelled"].float().mean()))
+    assert 0.0 < stats["train/reuse_fraction"] <= 1.0
+
+
+# ---------------------------------------------------------------------------- which candidate is kept
+def brute_force_search(transform: PolicyReuseTransform, start: TensorDict, kind: MotionKind):
+    """Each candidate t_n on its own row of a fresh env: B steered to the destination's position at t_n,
+    run for at most ``t_n + spacing`` decisions. Returns the arrival step per candidate (0 = no success)."""
+    grid = transform.candidates
+    spacing = int(grid[1] - grid[0]) if grid.numel() > 1 else 1
+    env = GuidanceEnv(params(kind), num_envs=grid.numel(), seed=11)
+    td = env.reset(env.scenario(
+        aircraft_state=start["aircraft_state"], destination_state=start["destination_state"],
+        destination_speed=start["destination_speed"], destination_turn_rate=start["destination_turn_rate"],
+    ))
+    target = torch.zeros(grid.numel(), 4)
+    if kind is MotionKind.UNIFORM:
+        target[:, 0] = STEP * grid.float()
+    limit = (grid + spacing).clamp(max=BUDGET)
+    arrival = torch.zeros(grid.numel(), dtype=torch.long)
+    running = torch.ones(grid.numel(), dtype=torch.bool)
+    simulation = env.params.simulation
+    for step in range(BUDGET):
+        if not bool(running.any()):
+            break
+        observed = policy_observation(td["aircraft_state"], target, td["last_action"], simulation.airspace,
+                                      simulation.limits)
+        td["action"] = baseline_argmax(observed)
+        td = env.step(td)
+        success = running & (td["next", "outcome"] == Outcome.SUCCESS)
+        arrival[success] = step + 1
+        running &= (td["next", "outcome"] == Outcome.RUNNING) & (step + 1 < limit)
+        td = env.step_mdp(td)
+    return arrival
+
+
+@pytest.mark.parametrize("keep", ["earliest", "latest"])
+def test_search_keeps_the_earliest_or_latest_successful_candidate(uniform, keep):
+    flat = uniform.flat()
+    transform = uniform.transform(keep=keep, candidate_stride=2, max_candidates=6)
+    starts = starts_of(flat)[:1]
+    prediction, motion = transform._destination_prediction(flat, starts, flat.get(TRAJECTORY_KEY))
+    arrival, winner = transform._search(flat[starts], prediction, motion)
+    brute = brute_force_search(transform, flat[starts[0]], MotionKind.UNIFORM)
+    succeeded = (brute > 0).nonzero().squeeze(-1)
+    assert succeeded.numel() >= 2, "the scenario must have several successful candidates"
+    expected = succeeded.min() if keep == "earliest" else succeeded.max()
+    assert int(winner) == int(expected)
+    assert int(arrival) == int(brute[expected])
+
+
+def test_earliest_and_latest_differ_when_every_candidate_succeeds(fixed):
+    flat = fixed.flat()
+    starts = starts_of(flat)
+    results = {}
+    for keep in ("earliest", "latest"):
+        transform = fixed.transform(keep=keep, max_candidates=4)  # t_n in {1, 7, 14, 20}, spacing 6
+        prediction, motion = transform._destination_prediction(flat, starts, flat.get(TRAJECTORY_KEY))
+        # A fixed destination: the prediction is its position, whatever t_n.
+        position = flat["destination_state"][starts][:, None]
+        torch.testing.assert_close(prediction, position.expand_as(prediction))
+        results[keep] = transform._search(flat[starts], prediction, motion)
+    assert results["earliest"][1].tolist() == [0] * starts.numel()
+    assert results["latest"][1].tolist() == [3] * starts.numel()
+    # Same arrival (the steered point is the same): the kept re-played episodes are the same too.
+    assert torch.equal(results["earliest"][0], results["latest"][0])
+    assert bool((results["earliest"][0] == 4).all())
+
+
+def test_keep_changes_the_relabelled_actions_on_a_moving_destination(relabelled):
+    latest_out = relabelled.collected.transform(keep="latest").relabel(relabelled.flat)
+    outs = {"earliest": relabelled.out, "latest": latest_out}
+    earliest, latest = (outs[k][outs[k]["relabelled"]] for k in ("earliest", "latest"))
+    # Steered at a farther predicted point, the latest candidate accelerates for longer.
+    assert int((latest["action"] == ACCELERATE).sum()) > int((earliest["action"] == ACCELERATE).sum())
+
+
+def test_rejects_an_unknown_keep(uniform):
+    with pytest.raises(ValueError, match="keep"):
+        uniform.transform(keep="best")
+
+
+# ---------------------------------------------------------------------------- prediction past the episode
+@pytest.mark.parametrize("kind", [MotionKind.UNIFORM, MotionKind.FIXED])
+def test_prediction_past_the_episode_follows_the_motion_model(uniform, fixed, kind):
+    collected = uniform if kind is MotionKind.UNIFORM else fixed
+    flat = collected.flat()
+    transform = collected.transform()
+    starts = starts_of(flat)
+    prediction, motion = transform._destination_prediction(flat, starts, flat.get(TRAJECTORY_KEY))
+    assert prediction.shape == (starts.numel(), BUDGET + 1, 4) and motion.shape == (starts.numel(), BUDGET, 2)
+    # Episodes that end early (the agent dives out) and episodes cut by the batch's end are both there.
+    traj_ids = flat.get(TRAJECTORY_KEY)
+    recorded = torch.stack([(traj_ids == traj_ids[s]).sum() for s in starts])
+    assert bool((recorded < BUDGET).any())
+    start = flat["destination_state"][starts]
+    expected = start[:, None].repeat(1, BUDGET + 1, 1)
+    if kind is MotionKind.UNIFORM:  # a straight line along +x at 50 m/s: 150 m per decision
+        expected[..., 0] += STEP * torch.arange(BUDGET + 1, dtype=torch.float32)
+        torch.testing.assert_close(motion, torch.tensor([50.0, 0.0]).expand_as(motion))
+    else:
+        torch.testing.assert_close(motion, torch.zeros_like(motion))
+    torch.testing.assert_close(prediction, expected, atol=1e-2, rtol=0)
+
+
+# ---------------------------------------------------------------------------- as a replay-buffer transform
+def test_extend_does_not_write_into_the_collector_batch(uniform):
+    data = uniform.data.clone()
+    flat = data.reshape(-1)  # as in the trainer: views of the collector's tensors
+    before = data.clone()
+    transform = uniform.transform()
+    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(3 * flat.numel()),
+                                    sampler=SamplerWithoutReplacement(), batch_size=16, transform=transform)
+    buffer.extend(flat)
+    assert (data == before).all(), "rb.extend changed the collector's batch in place"
+    assert set(data.keys(True, True)) == set(before.keys(True, True))
+    stored = buffer[:]
+    assert len(buffer) == stored.numel()
+    assert bool(stored["relabelled"].any()), "the buffer holds relabelled rows"
+    assert transform.last_statistics()["train/reuse_fraction"] == pytest.approx(
+        float(stored["relabelled"].float().mean()))
+    # Sampling returns stored rows unchanged (forward is the identity).
+    sample = buffer.sample()
+    assert set(sample.keys()) >= set(PPO_KEYS)
+
+
+def test_rejects_unflattened_rows(uniform):
+    with pytest.raises(ValueError, match="flat rows"):
+        uniform.transform().relabel(uniform.data)
+
+
+# ---------------------------------------------------------------------------- end to end
+#: The hand-built scenario for a whole training run: every episode starts 5 km behind the destination.
+SCENARIO_START = ["simulation.initial_state.x_range=[-5000,-5000]", "simulation.initial_state.y_range=[0,0]",
+                  "simulation.initial_state.z_range=[100,100]"]
+
+
+@pytest.fixture(scope="module")
+def steady_baseline(tmp_path_factory) -> Path:
+    """A fixed-task baseline checkpoint in the trainer's format whose actor always flies steady:
+    in the hand-built scenario that reaches the destination, so relabelling happens in the run."""
+    torch.manual_seed(0)
+    actor = make_actor([16, 16], "tanh")
+    output_layer = actor.module[0].module[-1]
+    with torch.no_grad():
+        output_layer.weight.zero_()
+        output_layer.bias.zero_()
+        output_layer.bias[STEADY] = 10.0
+    path = tmp_path_factory.mktemp("baseline") / "steady.pt"
+    agent = {"name": "small", "actor_hidden": [16, 16], "critic_hidden": [16, 16], "activation": "tanh"}
+    save_checkpoint({"actor": actor.state_dict(), "critic": make_critic([16, 16], "tanh").state_dict(),
+                     "config": {"agent": agent, "task": {"name": "fixed"}}}, path)
+    return path
+
+
+def scalar_values(run_dir: Path) -> dict[str, list[float]]:
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    values: dict[str, list[float]] = {}
+    for events in run_dir.rglob("events.out.tfevents.*"):
+        accumulator = EventAccumulator(str(events))
+        accumulator.Reload()
+        for tag in accumulator.Tags()["scalars"]:
+            values.setdefault(tag, []).extend(event.value for event in accumulator.Scalars(tag))
+    return values
+
+
+def test_reuse_training_runs_end_to_end(run_cli, tiny_args, tmp_path, steady_baseline):
+    run_dir = tmp_path / "reuse"
+    args = tiny_args({"ppo.total_frames": 512, "eval.interval": 1, "eval.episodes": 8})
+    baseline = f"method.baseline={steady_baseline}"
+    result = run_cli("train", "task=uniform", "speed=50", "method=reuse", baseline, "method.max_candidates=4",
+                     *args, *SCENARIO_START, f"hydra.run.dir={run_dir}")
+    assert result.returncode == 0, result.stderr[-3000:]
+    values = scalar_values(run_dir)
+    assert {"train/e", "train/reuse_fraction"} <= set(values), sorted(values)
+    assert 0 < values["train/reuse_fraction"][-1] <= 1, "the steady baseline arrives: rows are relabelled"
+    assert 0 < values["train/e"][-1] < 1, "e dropped by k per selected episode"
+    summary = json.loads((run_dir / "eval" / "eval.json").read_text())
+    assert summary["method"] == "reuse" and summary["task"] == "uniform"
+
+
+def test_pretrained_with_a_different_actor_is_a_one_line_error(run_cli, tiny_args, tiny_run, tmp_path):
+    baseline = tiny_run.run_dir / "checkpoints" / "latest.pt"  # fixed task, the default [128, 128] actor
+    result = run_cli("train", "method=pretrained", f"method.baseline={baseline}",
+                     "agent.actor_hidden=[32,32]", *tiny_args(), f"hydra.run.dir={tmp_path / 'pretrained'}")
+    assert result.returncode == 2, result.stderr[-3000:]
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("agrl.train: error:") and str(baseline) in lines[0] and "actor" in lines[0]
+    assert "Traceback" not in result.stderr

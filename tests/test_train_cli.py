@@ -1,0 +1,182 @@
+"""``python -m agrl.train`` end to end: outputs of a tiny run, Ctrl-C, resume, and command-line errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+import random
+import signal
+import subprocess
+import time
+
+import pytest
+import torch
+from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+from agrl.rl.checkpoint import load_checkpoint
+from agrl.rl.trainer import Trainer
+
+TRAINING_STATE = ("actor", "critic", "optimizer", "counters", "carrier", "rng", "config")
+
+
+def read_csv(path):
+    with path.open(newline="") as file:
+        return list(csv.DictReader(file))
+
+
+def error_lines(stderr: str) -> list[str]:
+    return [line for line in stderr.splitlines() if line.strip()]
+
+
+# ---------------------------------------------------------------------------- the shared tiny run
+def test_tiny_run_writes_checkpoints_metrics_and_evaluation(tiny_run):
+    run = tiny_run.run_dir
+    for name in ("latest", "best"):
+        payload = load_checkpoint(run / "checkpoints" / f"{name}.pt", required=TRAINING_STATE)
+        assert payload["run_dir"] == str(run)
+    latest = load_checkpoint(run / "checkpoints" / "latest.pt")
+    assert latest["counters"]["iteration"] == tiny_run.iterations
+    assert latest["counters"]["frames"] == int(tiny_run.changes["ppo.total_frames"])
+    assert latest["config"]["ppo"]["num_envs"] == 32
+    assert not list((run / "checkpoints").glob("*.tmp")), "temporary checkpoint files left behind"
+
+    rows = read_csv(run / "metrics.csv")
+    assert [int(row["iteration"]) for row in rows] == list(range(1, tiny_run.iterations + 1))
+    assert [int(row["frames"]) for row in rows] == [512 * i for i in range(1, tiny_run.iterations + 1)]
+    # Periodic evaluation every 2 iterations (eval.interval=2), training success every iteration.
+    assert [row["eval/success_rate"] != "" for row in rows] == [False, True, False, True]
+    assert all(0.0 <= float(row["train/success_rate"]) <= 1.0 for row in rows)
+
+    assert (run / "eval" / "trajectories.png").stat().st_size > 1000
+    episodes = read_csv(run / "eval" / "episodes.csv")
+    assert len(episodes) == 16  # eval.episodes: one row per episode
+    assert [int(row["episode"]) for row in episodes] == list(range(16))
+    assert {row["outcome"] for row in episodes} <= {"success", "out_of_airspace", "budget_exhausted"}
+    assert all(1 <= int(row["decisions"]) <= 30 for row in episodes)  # simulation.max_decisions=30
+
+    evaluation = json.loads((run / "eval" / "eval.json").read_text())
+    assert evaluation["episodes"] == 16
+    assert sum(evaluation["outcomes"].values()) == 16
+    successes = sum(row["outcome"] == "success" for row in episodes)
+    assert evaluation["success_rate"] == successes / 16
+    assert evaluation["outcomes"]["success"] == successes
+    mean_instructions = sum(int(row["instructions"]) for row in episodes) / 16
+    assert evaluation["instructions_per_episode"] == pytest.approx(mean_instructions)
+    assert evaluation["iterations"] == tiny_run.iterations
+
+
+def test_tiny_run_prints_json_summary_on_last_line(tiny_run):
+    summary = json.loads(tiny_run.stdout.strip().splitlines()[-1])
+    for key in ("success_rate", "instructions_per_episode", "ms_per_instruction", "outcomes"):
+        assert key in summary
+    assert summary["ms_per_instruction"] > 0
+    assert summary == json.loads((tiny_run.run_dir / "eval" / "eval.json").read_text())
+
+
+def test_tiny_run_tensorboard_scalars(tiny_run):
+    directory = tiny_run.run_dir / "tensorboard"
+    assert list(directory.glob("events.out.tfevents.*"))
+    events = EventAccumulator(str(directory), size_guidance={"scalars": 0})
+    events.Reload()
+    tags = set(events.Tags()["scalars"])
+    for tag in ("train/success_rate", "loss/clip_fraction", "time/decisions_per_second", "eval/success_rate"):
+        assert tag in tags, f"{tag} missing from {sorted(tags)}"
+    steps = [event.step for event in events.Scalars("time/decisions_per_second")]
+    assert steps == [512 * i for i in range(1, tiny_run.iterations + 1)]
+    assert [event.step for event in events.Scalars("eval/success_rate")] == [1024, 2048]
+    assert all(0.0 <= event.value <= 1.0 for event in events.Scalars("loss/clip_fraction"))
+
+
+# ---------------------------------------------------------------------------- Ctrl-C
+@pytest.mark.usefixtures("torch_one_thread")
+def test_ctrl_c_saves_latest_and_resume_continues(tmp_path, run_cli, tiny_args, compose_train):
+    run = tmp_path / "run"
+    command = run_cli.command("train", *tiny_args({"ppo.total_frames": 10**9}), f"hydra.run.dir={run}")
+    latest = run / "checkpoints" / "latest.pt"
+    with (tmp_path / "stdout").open("w") as out, (tmp_path / "stderr").open("w") as err:
+        process = subprocess.Popen(
+            command, cwd=run_cli.cwd, env=run_cli.environment(), stdout=out, stderr=err,
+            # The default SIGINT handler (KeyboardInterrupt), even if the test runner ignores SIGINT.
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        )
+        try:
+            deadline = time.monotonic() + 120
+            # metrics.csv has a row and the first periodic `latest` was written: at least one iteration is done.
+            while not (latest.exists() and (run / "metrics.csv").exists() and read_csv(run / "metrics.csv")):
+                assert process.poll() is None, (tmp_path / "stderr").read_text()[-3000:]
+                assert time.monotonic() < deadline, "no iteration finished within 120 s"
+                time.sleep(0.05)
+            process.send_signal(signal.SIGINT)
+            code = process.wait(timeout=60)
+        finally:
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+    assert code == 130, (tmp_path / "stderr").read_text()[-3000:]
+    assert "interrupted" in (run / "train.log").read_text()
+    payload = load_checkpoint(latest, required=TRAINING_STATE)
+    iteration, frames = payload["counters"]["iteration"], payload["counters"]["frames"]
+    assert iteration >= 1 and frames == 512 * iteration
+    assert not list((run / "checkpoints").glob("*.tmp"))
+
+    # A tiny continuation (in process; the command-line resume is tested in tests/rl/test_trainer.py).
+    config = compose_train(*tiny_args({"ppo.total_frames": frames + 512}))
+    summary = Trainer(config, run, resume_payload=payload).train()
+    assert summary["iterations"] == iteration + 1
+    after = load_checkpoint(latest)
+    assert after["counters"]["iteration"] == iteration + 1
+    assert after["counters"]["frames"] == frames + 512
+    assert [int(row["iteration"]) for row in read_csv(run / "metrics.csv")][-1] == iteration + 1
+
+
+# ---------------------------------------------------------------------------- command-line errors
+@pytest.fixture(scope="module")
+def bad_invocations(run_cli, tmp_path_factory):
+    """Every failing invocation of this module, run at once: {case: CompletedProcess}."""
+    directory = tmp_path_factory.mktemp("bad_train")
+    bad = directory / "random.pt"
+    bad.write_bytes(random.Random(7).randbytes(4096))
+    jobs = {
+        "sped": ("train", "sped=5"),
+        "task-foo": ("train", "task=foo"),
+        "negative-speed": ("train", "task=uniform", "speed=-5"),
+        "zero-envs": ("train", "ppo.num_envs=0"),
+        "resume-random-bytes": ("train", f"resume={bad}", f"hydra.run.dir={directory / 'run'}"),
+    }
+    return {"bad_file": bad, **run_cli.batch(jobs)}
+
+
+def test_misspelt_key_is_a_hydra_error_naming_it(bad_invocations):
+    result = bad_invocations["sped"]
+    assert result.returncode != 0
+    assert "Key 'sped' not in" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_unknown_task_lists_the_available_options(bad_invocations):
+    result = bad_invocations["task-foo"]
+    assert result.returncode != 0
+    assert "task/foo" in result.stderr
+    assert "Available options in 'task'" in result.stderr
+    for option in ("fixed", "uniform", "curved", "irregular"):
+        assert option in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize(("case", "named"), [("negative-speed", "speed=-5.0"), ("zero-envs", "ppo.num_envs=0")])
+def test_out_of_range_value_exits_2_with_one_line(bad_invocations, case, named):
+    result = bad_invocations[case]
+    assert result.returncode == 2, result.stderr[-3000:]
+    lines = error_lines(result.stderr)
+    assert len(lines) == 1, lines
+    assert lines[0].startswith("agrl.train: error:")
+    assert named in lines[0]
+
+
+def test_resume_from_corrupt_checkpoint_exits_2_naming_the_file(bad_invocations):
+    result = bad_invocations["resume-random-bytes"]
+    assert result.returncode == 2, result.stderr[-3000:]
+    lines = error_lines(result.stderr)
+    assert len(lines) == 1, lines
+    assert lines[0].startswith("agrl.train: error:")
+    assert str(bad_invocations["bad_file"]) in lines[0]
