@@ -210,10 +210,11 @@ class MethodConfig:
     name: str = "scratch"
     baseline: str | None = None  # checkpoint path, or "baseline" for the shipped one
     initial_selection_factor: float = 1.0  # e at the start (Algorithm 1)
-    selection_decay: float = 1e-4  # k, subtracted from e per relabelled episode
+    selection_decay: float = 2e-5  # k, subtracted from e per relabelled episode
     candidate_stride: int = 1  # consider every n-th step as a termination step t_n
     max_candidates: int = 32  # at most this many t_n per episode (evenly spread)
     keep: str = "earliest"  # which successful candidate to keep: earliest | latest
+    behaviour_log_prob: str = "baseline"  # relabelled rows' PPO behaviour log-prob: current (Z's) | baseline (B's)
     use_curriculum: bool = True  # apply the root `curriculum` (off for methods that start from a baseline)
 
     def __post_init__(self) -> None:
@@ -227,6 +228,8 @@ class MethodConfig:
         _require(self.candidate_stride >= 1, "method.candidate_stride", self.candidate_stride, ">= 1")
         _require(self.max_candidates >= 1, "method.max_candidates", self.max_candidates, ">= 1")
         _require(self.keep in ("earliest", "latest"), "method.keep", self.keep, "earliest or latest")
+        _require(self.behaviour_log_prob in ("current", "baseline"), "method.behaviour_log_prob",
+                 self.behaviour_log_prob, "current or baseline")
 
 
 @dataclass

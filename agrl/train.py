@@ -38,7 +38,9 @@ def _resume_config(cfg: DictConfig, reference: str) -> tuple[DictConfig, dict, P
     overrides = [o for o in HydraConfig.get().overrides.task if o.split("=")[0].lstrip("+~").startswith(RESUMABLE_OVERRIDES)]
     saved = OmegaConf.merge(saved, OmegaConf.from_dotlist(overrides))
     saved.resume = str(reference)
-    return saved, payload, Path(payload.get("run_dir") or path.parent.parent)
+    # A checkpoint inside a run directory continues there (even if the directory was moved).
+    run_dir = path.parent.parent if path.parent.name == "checkpoints" else Path(payload.get("run_dir", path.parent))
+    return saved, payload, run_dir
 
 
 def run(cfg: DictConfig) -> dict:
@@ -59,7 +61,7 @@ def run(cfg: DictConfig) -> dict:
 def main(cfg: DictConfig) -> None:
     try:
         summary = run(cfg)
-    except (ConfigError, CheckpointError) as error:
+    except (ConfigError, CheckpointError, ValueError) as error:  # ConfigError is a ValueError too
         print(f"agrl.train: error: {error}", file=sys.stderr)
         sys.exit(2)
     except KeyboardInterrupt:

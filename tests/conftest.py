@@ -8,7 +8,8 @@
 * ``tiny_run`` is one real ``python -m agrl.train`` run of 4 iterations, shared by the whole session.
 
 Torch runs with one intra-op thread here (``OMP_NUM_THREADS=1`` for subprocesses, ``torch_one_thread`` in
-process): with tensors this small, two OpenMP threads on a busy 2-core machine make every layer 100x slower.
+process): with tensors this small, two OpenMP threads on a busy 2-core machine spin and wait, and a tiny run
+takes three times as long.
 Results are compared bitwise between processes, so both sides must use the same thread count.
 """
 
@@ -144,12 +145,13 @@ def cli_workdir(tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def run_cli(cli_workdir):
     """``run_cli("train", *overrides)`` -> CompletedProcess of ``python -m agrl.train ...``;
-    ``run_cli.batch({"name": ("train", *overrides), ...})`` runs several at once -> {name: CompletedProcess}."""
+    ``run_cli.batch({"name": ("train", *overrides), ...})`` runs several at once
+    and returns {name: CompletedProcess}."""
 
     def run(module: str, *args: str, timeout: float = 300) -> subprocess.CompletedProcess:
         return _run_cli(module, *args, cwd=cli_workdir, timeout=timeout)
 
-    def batch(jobs: dict[str, tuple[str, ...]], timeout: float = 300) -> dict[str, subprocess.CompletedProcess]:
+    def batch(jobs: dict[str, tuple[str, ...]], timeout: float = 300) -> dict:
         return _run_cli_batch(jobs, cwd=cli_workdir, timeout=timeout)
 
     run.batch = batch
@@ -183,6 +185,6 @@ def tiny_run(tmp_path_factory, cli_workdir) -> TinyRun:
     run_dir = tmp_path_factory.mktemp("tiny_run") / "run"
     overrides = _tiny_args(TINY_RUN_CHANGES)
     result = _run_cli("train", *overrides, f"hydra.run.dir={run_dir}", cwd=cli_workdir)
-    assert result.returncode == 0, f"tiny training run failed:\n{result.stdout[-3000:]}\n{result.stderr[-3000:]}"
+    assert result.returncode == 0, f"tiny run failed:\n{result.stdout[-3000:]}\n{result.stderr[-3000:]}"
     return TinyRun(run_dir=run_dir, changes=dict(TINY_RUN_CHANGES), iterations=TINY_RUN_ITERATIONS,
                    overrides=overrides, stdout=result.stdout, stderr=result.stderr)

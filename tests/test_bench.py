@@ -39,9 +39,10 @@ def test_quick_run_prints_json_lines():
 def test_arguments():
     full = parse_args([])
     assert full.batch_sizes == [1024, 4096, 16384] and full.modes == ["eager", "compiled"]
-    assert full.repeats == 5 and str(full.device) == "cpu"
+    assert full.repeats == 5 and str(full.device) == "cpu" and full.threads is None  # torch's default
     quick = parse_args(["--quick", "--repeats", "3"])
     assert quick.modes == ["eager"] and quick.repeats == 3 and max(quick.batch_sizes) <= 256
-    for bad in (["--batch-sizes", "0"], ["--modes", "jit"], ["--repeats", "-1"]):
+    assert parse_args(["--threads", "1"]).threads == 1
+    for bad in (["--batch-sizes", "0"], ["--modes", "jit"], ["--repeats", "-1"], ["--threads", "0"]):
         with pytest.raises(SystemExit):
             parse_args(bad)

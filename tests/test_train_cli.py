@@ -10,7 +10,6 @@ import subprocess
 import time
 
 import pytest
-import torch
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 from agrl.rl.checkpoint import load_checkpoint
@@ -70,7 +69,8 @@ def test_tiny_run_prints_json_summary_on_last_line(tiny_run):
     for key in ("success_rate", "instructions_per_episode", "ms_per_instruction", "outcomes"):
         assert key in summary
     assert summary["ms_per_instruction"] > 0
-    assert summary == json.loads((tiny_run.run_dir / "eval" / "eval.json").read_text())
+    saved = json.loads((tiny_run.run_dir / "eval" / "eval.json").read_text())
+    assert json.dumps(summary, sort_keys=True) == json.dumps(saved, sort_keys=True)  # NaN == NaN as text
 
 
 def test_tiny_run_tensorboard_scalars(tiny_run):
@@ -91,7 +91,9 @@ def test_tiny_run_tensorboard_scalars(tiny_run):
 @pytest.mark.usefixtures("torch_one_thread")
 def test_ctrl_c_saves_latest_and_resume_continues(tmp_path, run_cli, tiny_args, compose_train):
     run = tmp_path / "run"
-    command = run_cli.command("train", *tiny_args({"ppo.total_frames": 10**9}), f"hydra.run.dir={run}")
+    # No periodic `latest` (checkpoint_interval=1000): the checkpoint must come from the interrupt handler.
+    command = run_cli.command("train", *tiny_args({"ppo.total_frames": 10**9, "checkpoint_interval": 1000}),
+                              f"hydra.run.dir={run}")
     latest = run / "checkpoints" / "latest.pt"
     with (tmp_path / "stdout").open("w") as out, (tmp_path / "stderr").open("w") as err:
         process = subprocess.Popen(
@@ -101,11 +103,12 @@ def test_ctrl_c_saves_latest_and_resume_continues(tmp_path, run_cli, tiny_args, 
         )
         try:
             deadline = time.monotonic() + 120
-            # metrics.csv has a row and the first periodic `latest` was written: at least one iteration is done.
-            while not (latest.exists() and (run / "metrics.csv").exists() and read_csv(run / "metrics.csv")):
+            # Two rows in metrics.csv: iteration 1 is complete, snapshot included.
+            while not ((run / "metrics.csv").exists() and len(read_csv(run / "metrics.csv")) >= 2):
                 assert process.poll() is None, (tmp_path / "stderr").read_text()[-3000:]
-                assert time.monotonic() < deadline, "no iteration finished within 120 s"
+                assert time.monotonic() < deadline, "two iterations did not finish within 120 s"
                 time.sleep(0.05)
+            assert not latest.exists()
             process.send_signal(signal.SIGINT)
             code = process.wait(timeout=60)
         finally:
@@ -113,14 +116,14 @@ def test_ctrl_c_saves_latest_and_resume_continues(tmp_path, run_cli, tiny_args, 
                 process.kill()
                 process.wait()
     assert code == 130, (tmp_path / "stderr").read_text()[-3000:]
-    assert "interrupted" in (run / "train.log").read_text()
+    assert "interrupted: saved the last completed iteration" in (run / "train.log").read_text()
     payload = load_checkpoint(latest, required=TRAINING_STATE)
     iteration, frames = payload["counters"]["iteration"], payload["counters"]["frames"]
     assert iteration >= 1 and frames == 512 * iteration
     assert not list((run / "checkpoints").glob("*.tmp"))
 
     # A tiny continuation (in process; the command-line resume is tested in tests/rl/test_trainer.py).
-    config = compose_train(*tiny_args({"ppo.total_frames": frames + 512}))
+    config = compose_train(*tiny_args({"ppo.total_frames": frames + 512, "checkpoint_interval": 1000}))
     summary = Trainer(config, run, resume_payload=payload).train()
     assert summary["iterations"] == iteration + 1
     after = load_checkpoint(latest)
@@ -163,7 +166,8 @@ def test_unknown_task_lists_the_available_options(bad_invocations):
     assert "Traceback" not in result.stderr
 
 
-@pytest.mark.parametrize(("case", "named"), [("negative-speed", "speed=-5.0"), ("zero-envs", "ppo.num_envs=0")])
+@pytest.mark.parametrize(("case", "named"),
+                         [("negative-speed", "speed=-5.0"), ("zero-envs", "ppo.num_envs=0")])
 def test_out_of_range_value_exits_2_with_one_line(bad_invocations, case, named):
     result = bad_invocations[case]
     assert result.returncode == 2, result.stderr[-3000:]

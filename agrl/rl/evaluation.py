@@ -109,9 +109,10 @@ def summarise(records: EpisodeRecords) -> dict[str, float | int | dict]:
     successes = int(success.sum())
     low, high = wilson_interval(successes, episodes)
 
-    def mean(values: torch.Tensor, mask: torch.Tensor | None = None) -> float:
+    def mean(values: torch.Tensor, mask: torch.Tensor | None = None) -> float | None:
+        # None (JSON null) when there is nothing to average, e.g. no successful episode.
         values = values.float() if mask is None else values[mask].float()
-        return float(values.mean()) if values.numel() else float("nan")
+        return float(values.mean()) if values.numel() else None
 
     return {
         "episodes": episodes,

@@ -52,6 +52,10 @@ TRAJECTORY_KEY = ("collector", "traj_ids")
 
 def candidate_steps(max_decisions: int, stride: int, max_candidates: int) -> torch.Tensor:
     """The grid of candidate termination steps ``t_n`` in ``[stride, max_decisions]``, at most ``max_candidates``."""
+    if not 1 <= stride <= max_decisions:
+        raise ValueError(f"candidate_stride={stride} is not allowed: between 1 and max_decisions={max_decisions}")
+    if max_candidates < 1:
+        raise ValueError(f"max_candidates={max_candidates} is not allowed: >= 1")
     grid = torch.arange(stride, max_decisions + 1, stride)
     if grid.numel() > max_candidates:
         pick = torch.linspace(0, grid.numel() - 1, max_candidates).round().long().unique()
@@ -66,12 +70,13 @@ class PolicyReuseTransform(Transform):
         self,
         baseline_actor: torch.nn.Module,
         env: GuidanceEnv,
+        *,
+        ppo_targets: Callable[[TensorDictBase], TensorDictBase],
         initial_selection_factor: float = 1.0,
         selection_decay: float = 0.0,
         candidate_stride: int = 1,
         max_candidates: int = 64,
         keep: str = "earliest",
-        ppo_targets: Callable[[TensorDictBase], TensorDictBase] | None = None,
         max_rows: int | None = None,
         seed: int = 0,
     ):
@@ -135,8 +140,11 @@ class PolicyReuseTransform(Transform):
             winner_step, winner_index = self._search(rows[starts], trajectory, motion)
             succeeded = winner_index >= 0
             if bool(succeeded.any()):
-                relabelled_rows = self._replay(rows[starts[succeeded]], trajectory[succeeded],
-                                               motion[succeeded], winner_step[succeeded], winner_index[succeeded])
+                found = succeeded.nonzero().squeeze(-1)
+                relabelled_rows, replayed = self._replay(rows[starts[found]], trajectory[found], motion[found],
+                                                         winner_step[found], winner_index[found])
+                # The replay decides (see _replay): an episode whose replay did not succeed keeps its own rows.
+                succeeded[found] = replayed
         replaced_ids = traj_ids[starts[succeeded]]
         keep_own = ~torch.isin(traj_ids, replaced_ids)
         own = rows[keep_own].select(*[key for key in PPO_KEYS if key != "relabelled"])
@@ -193,6 +201,10 @@ class PolicyReuseTransform(Transform):
 
     def _baseline_actions(self, state: TensorDictBase, predicted_destination: torch.Tensor) -> torch.Tensor:
         """B's deterministic action on the state whose destination fields are the prediction (equation 20)."""
+        return self._baseline_query(state, predicted_destination)["action"]
+
+    def _baseline_query(self, state: TensorDictBase, predicted_destination: torch.Tensor) -> TensorDictBase:
+        """B's output (``action``: its argmax; ``action_log_prob``: B's log-probability of it)."""
         simulation = self.env.params.simulation
         observation = policy_observation(
             state["aircraft_state"], predicted_destination, state["last_action"], simulation.airspace,
@@ -200,7 +212,7 @@ class PolicyReuseTransform(Transform):
         )
         query = TensorDict({"observation": observation}, batch_size=state.batch_size, device=state.device)
         with set_exploration_type(ExplorationType.DETERMINISTIC):
-            return self.baseline_actor(query)["action"]
+            return self.baseline_actor(query)
 
     def _search(
         self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor
@@ -248,8 +260,13 @@ class PolicyReuseTransform(Transform):
     def _replay(
         self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor,
         arrival: torch.Tensor, winner_index: torch.Tensor,
-    ) -> TensorDictBase:
-        """Re-play the kept candidates, recording full transitions; return flat PPO rows."""
+    ) -> tuple[TensorDictBase | None, torch.Tensor]:
+        """Re-play the kept candidates, recording full transitions.
+
+        Returns the flat PPO rows of the re-played episodes that succeeded and a mask of which did. The search
+        ran B on differently sized batches, so a near-tie between two logits could in principle flip an argmax
+        here; the replay therefore cuts each episode at its own first terminal step and keeps only successes.
+        """
         episodes = start_rows.numel()
         device = trajectory.device
         rows_index = torch.arange(episodes, device=device)
@@ -259,20 +276,26 @@ class PolicyReuseTransform(Transform):
         length = int(arrival.max())
         steps = []
         for step in range(length):
-            state["action"] = self._baseline_actions(state, predicted)
+            query = self._baseline_query(state, predicted)
+            state["action"] = query["action"]
+            state["baseline_log_prob"] = query["action_log_prob"]
             next_state = self.env.transition(state, motion[:, step, 0], motion[:, step, 1])
             steps.append(state.clone().set("next", next_state))
             state = next_state.exclude("reward", "done", "terminated", "outcome")
         trajectories = torch.stack(steps, 1)  # (episodes, length)
-        valid = torch.arange(length, device=device)[None, :] < arrival[:, None]
+        terminal = trajectories["next", "done"].squeeze(-1)
+        ended = terminal.any(-1)
+        first_terminal = torch.where(ended, terminal.int().argmax(-1), length - 1)
+        outcome = trajectories["next", "outcome"].gather(1, first_terminal[:, None]).squeeze(1)
+        replayed = ended & (outcome == Outcome.SUCCESS)
+        valid = (torch.arange(length, device=device)[None, :] <= first_terminal[:, None]) & replayed[:, None]
         # Rows past an episode's success are padding: mark them terminal so GAE does not mix them in.
         trajectories["next", "done"] = trajectories["next", "done"] | ~valid[..., None]
         trajectories["next", "terminated"] = trajectories["next", "terminated"] | ~valid[..., None]
-        if self.ppo_targets is not None:
-            trajectories = self.ppo_targets(trajectories)
+        trajectories = self.ppo_targets(trajectories)
         flat = trajectories[valid]
         flat["relabelled"] = torch.ones(flat.batch_size, dtype=torch.bool, device=device)
-        return flat.select(*[key for key in PPO_KEYS if key in flat.keys()])
+        return flat.select(*PPO_KEYS), replayed
 
 
 def _initial_state(start_rows: TensorDictBase, index: torch.Tensor) -> TensorDictBase:

@@ -178,9 +178,11 @@ class Trainer:
 
     @torch.no_grad()
     def _ppo_targets(self, trajectories: TensorDictBase) -> TensorDictBase:
-        """What PPO needs for relabelled trajectories: behaviour log-probs under the current policy, GAE."""
-        log_prob = self.actor.get_dist(trajectories).log_prob(trajectories["action"])
-        trajectories["action_log_prob"] = log_prob
+        """What PPO needs for relabelled trajectories: a behaviour log-prob and GAE (see docs/policy_reuse.md)."""
+        if self.cfg.method.behaviour_log_prob == "baseline":
+            trajectories["action_log_prob"] = trajectories["baseline_log_prob"]
+        else:
+            trajectories["action_log_prob"] = self.actor.get_dist(trajectories).log_prob(trajectories["action"])
         return self.advantage(trajectories)
 
     def _apply_curriculum(self) -> None:
@@ -262,7 +264,12 @@ class Trainer:
                     )
                 self.optimizer.zero_grad(set_to_none=True)
                 total.backward()
-                torch.nn.utils.clip_grad_norm_(self.loss.parameters(), self.cfg.ppo.max_grad_norm)
+                gradient_norm = torch.nn.utils.clip_grad_norm_(self.loss.parameters(), self.cfg.ppo.max_grad_norm)
+                if not torch.isfinite(gradient_norm):
+                    raise TrainingDiverged(
+                        f"non-finite gradient at iteration {self.counters.iteration + 1}, update {updates + 1}; "
+                        f"last good checkpoint kept in {self.checkpoint_dir}"
+                    )
                 self.optimizer.step()
                 updates += 1
                 for key in ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx",
@@ -372,8 +379,8 @@ class Trainer:
                         "eval/decisions_per_episode": evaluation["decisions_per_episode"],
                         "eval/mean_return": evaluation["mean_return"],
                     })
-                self._log(metrics)
                 self._snapshot = self._state()
+                self._log(metrics)
                 if evaluation is not None and evaluation["success_rate"] > self.counters.best_success:
                     self.counters.best_success = evaluation["success_rate"]
                     self._snapshot = self._state()

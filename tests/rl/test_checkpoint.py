@@ -1,8 +1,9 @@
-"""Checkpoints: atomic save, round trip into ``agrl.evaluate.load_agent``, and one-line errors for bad files."""
+"""Checkpoints: atomic save, round trip into ``agrl.evaluate.load_agent``, one-line errors for bad files."""
 
 from __future__ import annotations
 
 import random
+import threading
 
 import pytest
 import torch
@@ -74,8 +75,8 @@ def test_save_is_atomic_and_stamps_format_and_versions(tmp_path):
     assert torch.equal(payload["actor"]["w"], torch.arange(3.0))
 
     # A payload that cannot be written leaves the previous file intact and no temporary file behind.
-    with pytest.raises(Exception):
-        save_checkpoint({"actor": {"w": torch.zeros(1)}, "unpicklable": lambda: None}, path)
+    with pytest.raises(TypeError, match="pickle"):
+        save_checkpoint({"actor": {"w": torch.zeros(1)}, "unpicklable": threading.Lock()}, path)
     assert torch.equal(load_checkpoint(path)["actor"]["w"], torch.arange(3.0))
     assert sorted(p.name for p in path.parent.iterdir()) == ["state.pt"]
 
@@ -129,8 +130,9 @@ def test_run_directory_without_checkpoint_is_named(tmp_path):
 
 
 # ---------------------------------------------------------------------------- mismatched networks
-def test_pretrained_from_a_differently_sized_actor_is_a_one_line_error(small_trainer, compose_train, tiny_args,
-                                                                      tmp_path):
+def test_pretrained_from_a_differently_sized_actor_is_a_one_line_error(
+    small_trainer, compose_train, tiny_args, tmp_path
+):
     baseline = small_trainer.checkpoint_dir / "latest.pt"
     config = compose_train(*tiny_args(), "method=pretrained", f"method.baseline={baseline}")
     assert config.agent.actor_hidden == [128, 128]
@@ -139,16 +141,6 @@ def test_pretrained_from_a_differently_sized_actor_is_a_one_line_error(small_tra
     message = str(raised.value)
     assert "\n" not in message
     assert message.startswith(f"{baseline}: the actor network does not match")
-
-
-def test_pretrained_mismatch_via_cli_exits_2(small_trainer, run_cli, tiny_args, tmp_path):
-    baseline = small_trainer.checkpoint_dir / "latest.pt"
-    result = run_cli("train", *tiny_args(), "method=pretrained", f"method.baseline={baseline}",
-                     f"hydra.run.dir={tmp_path / 'run'}")
-    assert result.returncode == 2, result.stderr[-3000:]
-    lines = [line for line in result.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1, lines
-    assert lines[0].startswith(f"agrl.train: error: {baseline}: the actor network does not match")
 
 
 def test_pretrained_from_a_matching_checkpoint_copies_its_weights(small_trainer, compose_train, tiny_args,

@@ -127,13 +127,16 @@ def test_resume_matches_an_uninterrupted_run_bitwise(tmp_path, tiny_run, compose
     assert resumed["counters"]["iteration"] == tiny_run.iterations
 
     # Same logged values, row by row (wall times aside).
-    columns = ("iteration", "frames", "train/success_rate", "eval/success_rate", "train/instructions_per_episode")
+    columns = ("iteration", "frames", "train/success_rate", "eval/success_rate",
+               "train/instructions_per_episode")
     rows = [[row[c] for c in columns] for row in read_csv(run / "metrics.csv")]
     assert rows == [[row[c] for c in columns] for row in read_csv(tiny_run.run_dir / "metrics.csv")]
 
 
 # ---------------------------------------------------------------------------- non-finite loss
-def test_non_finite_loss_stops_training_and_keeps_the_last_good_checkpoint(tmp_path, compose_train, tiny_args):
+def test_non_finite_loss_stops_training_and_keeps_the_last_good_checkpoint(
+    tmp_path, compose_train, tiny_args
+):
     run = tmp_path / "run"
     Trainer(compose_train(*tiny_args({"ppo.total_frames": 512, "eval.episodes": 4})), run).train()
     latest = run / "checkpoints" / "latest.pt"

@@ -1,0 +1,150 @@
+"""agrl.rl.evaluation: the Table-3 summary, the Wilson interval and reproducible deterministic episodes."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+import torch
+
+from agrl.config import to_guidance_parameters
+from agrl.core.termination import Outcome
+from agrl.envs.guidance import GuidanceEnv
+from agrl.rl.evaluation import (
+    EpisodeRecords,
+    instruction_latency_ms,
+    run_episodes,
+    summarise,
+    wilson_interval,
+)
+from agrl.rl.models import make_actor
+
+pytestmark = pytest.mark.usefixtures("torch_one_thread")
+
+Z95 = 1.959964
+
+
+def records(outcomes, instructions, decisions=None, returns=None) -> EpisodeRecords:
+    count = len(outcomes)
+    return EpisodeRecords(
+        initial_aircraft_state=torch.zeros(count, 7),
+        outcome=torch.tensor([int(o) for o in outcomes]),
+        decisions=torch.tensor(decisions if decisions is not None else [10] * count),
+        instructions=torch.tensor(instructions),
+        episode_return=torch.tensor(returns if returns is not None else [0.0] * count),
+        final_distance=torch.zeros(count),
+    )
+
+
+# ---------------------------------------------------------------------------- summary and interval
+def test_summarise_hand_made_records():
+    S, A, B = Outcome.SUCCESS, Outcome.OUT_OF_AIRSPACE, Outcome.BUDGET_EXHAUSTED  # A: out of the airspace
+    summary = summarise(records([S, S, A, B, S], instructions=[2, 4, 0, 6, 3], decisions=[5, 7, 20, 200, 9],
+                                returns=[20.0, 18.0, -21.0, -12.0, 19.0]))
+    assert summary["episodes"] == 5
+    assert summary["success_rate"] == 3 / 5
+    assert summary["outcomes"] == {"success": 3, "out_of_airspace": 1, "budget_exhausted": 1}
+    assert summary["instructions_per_episode"] == pytest.approx(15 / 5)
+    assert summary["instructions_per_successful_episode"] == pytest.approx((2 + 4 + 3) / 3)
+    assert summary["decisions_per_episode"] == pytest.approx(241 / 5)
+    assert summary["decisions_per_successful_episode"] == pytest.approx(21 / 3)
+    assert summary["mean_return"] == pytest.approx(24.0 / 5)
+    low, high = summary["success_rate_ci95"]
+    assert (low, high) == wilson_interval(3, 5)
+    assert low < 3 / 5 < high
+
+
+def test_summarise_without_successes():
+    summary = summarise(records([Outcome.OUT_OF_AIRSPACE] * 4, instructions=[1, 2, 3, 4]))
+    assert summary["success_rate"] == 0.0
+    assert summary["success_rate_ci95"][0] == 0.0
+    assert math.isnan(summary["instructions_per_successful_episode"])
+    assert summary["instructions_per_episode"] == pytest.approx(2.5)
+
+
+@pytest.mark.parametrize(("successes", "trials"), [(0, 10), (3, 5), (50, 100), (999, 1000), (1000, 1000)])
+def test_wilson_interval_properties(successes, trials):
+    low, high = wilson_interval(successes, trials)
+    p = successes / trials
+    assert 0.0 <= low <= p <= high <= 1.0
+    # Mirror symmetry: the interval of failures is the reflected interval of successes.
+    mirrored = wilson_interval(trials - successes, trials)
+    assert mirrored[0] == pytest.approx(1 - high) and mirrored[1] == pytest.approx(1 - low)
+    # Wilson's score interval solves |p - q| = z sqrt(q (1 - q) / n) at both ends (where not clipped).
+    for q in (low, high):
+        if 0 < q < 1:
+            assert abs(p - q) == pytest.approx(Z95 * math.sqrt(q * (1 - q) / trials), rel=1e-6)
+
+
+def test_wilson_interval_closed_forms():
+    # Zero successes: upper end z^2 / (n + z^2).
+    assert wilson_interval(0, 10) == (0.0, pytest.approx(Z95**2 / (10 + Z95**2)))
+    # It narrows with more trials and is symmetric about 1/2 at p = 1/2.
+    low10, high10 = wilson_interval(5, 10)
+    low1000, high1000 = wilson_interval(500, 1000)
+    assert high1000 - low1000 < high10 - low10
+    assert low10 + high10 == pytest.approx(1.0)
+    assert wilson_interval(0, 0) == (0.0, 1.0)
+
+
+# ---------------------------------------------------------------------------- episodes
+@pytest.fixture(scope="module")
+def params(compose_train, tiny_args):
+    cfg = compose_train(*tiny_args({"simulation.max_decisions": 12}))
+    return to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation)
+
+
+@pytest.fixture(scope="module")
+def actor():
+    torch.manual_seed(123)
+    actor = make_actor([32], "tanh")
+    with torch.no_grad():  # a non-uniform policy: varied maneuvers and instructions
+        actor.module[0].module[-1].weight.normal_(0.0, 1.0)
+    return actor.eval()
+
+
+def assert_same_records(a: EpisodeRecords, b: EpisodeRecords) -> None:
+    for field in dataclasses.fields(EpisodeRecords):
+        x, y = getattr(a, field.name), getattr(b, field.name)
+        assert (x is None) == (y is None), field.name
+        if x is not None:
+            assert torch.equal(x, y), field.name
+
+
+def test_run_episodes_is_reproducible_for_a_seed(params, actor):
+    first = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, record_trajectories=True)
+    torch.manual_seed(999)  # the global RNG must not matter
+    again = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, record_trajectories=True)
+    assert_same_records(first, again)
+    other = run_episodes(GuidanceEnv(params, num_envs=16, seed=6), actor, record_trajectories=True)
+    assert not torch.equal(first.initial_aircraft_state, other.initial_aircraft_state)
+
+    # Reseeding the same environment replays the same episodes.
+    env = GuidanceEnv(params, num_envs=16, seed=0)
+    env.set_seed(5)
+    assert_same_records(first, run_episodes(env, actor, record_trajectories=True))
+
+
+def test_run_episodes_records_are_consistent(params, actor):
+    result = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, record_trajectories=True)
+    assert result.outcome.shape == (16,)
+    assert bool((result.outcome != Outcome.RUNNING).all())  # every episode ends within max_decisions
+    assert bool(((result.decisions >= 1) & (result.decisions <= params.max_decisions)).all())
+    assert bool(((result.instructions >= 0) & (result.instructions <= result.decisions)).all())
+    assert int(result.instructions.sum()) > 0
+    steps = int(result.decisions.max())
+    assert result.trajectory_aircraft.shape == (16, steps + 1, 7)
+    assert result.trajectory_destination.shape == (16, steps + 1, 4)
+    assert torch.equal(result.trajectory_aircraft[:, 0], result.initial_aircraft_state)
+    # A finished episode's trajectory stays frozen at its last state.
+    for row in range(16):
+        frozen = result.trajectory_aircraft[row, int(result.decisions[row]):]
+        assert torch.equal(frozen, frozen[:1].expand_as(frozen))
+    summary = summarise(result)
+    assert sum(summary["outcomes"].values()) == 16
+
+
+def test_instruction_latency_is_a_positive_time(params, actor):
+    latency = instruction_latency_ms(GuidanceEnv(params, num_envs=4, seed=0), actor, queries=20)
+    assert 0.0 < latency < 1000.0

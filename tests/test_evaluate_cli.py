@@ -1,0 +1,108 @@
+"""``python -m agrl.evaluate``: reproducible results, its output files, task overrides and bad checkpoints."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from agrl.evaluate import evaluate
+from agrl.rl.checkpoint import load_checkpoint
+
+pytestmark = pytest.mark.usefixtures("torch_one_thread")
+
+TIMING_FIELDS = ("ms_per_instruction",)
+
+
+def without_timing(summary: dict) -> str:
+    """The summary minus timings, as canonical JSON text (so that NaN compares equal to NaN)."""
+    kept = {key: value for key, value in summary.items() if key not in TIMING_FIELDS}
+    return json.dumps(kept, sort_keys=True)
+
+
+def read_csv(path):
+    with path.open(newline="") as file:
+        return list(csv.DictReader(file))
+
+
+@pytest.fixture(scope="module")
+def cli_runs(tiny_run, run_cli, tmp_path_factory):
+    """The evaluation CLI on the shared tiny run, and on a corrupt checkpoint, run at once."""
+    directory = tmp_path_factory.mktemp("evaluate_cli")
+    truncated = directory / "truncated.pt"
+    data = (tiny_run.run_dir / "checkpoints" / "best.pt").read_bytes()
+    truncated.write_bytes(data[: len(data) // 3])
+    jobs = {
+        "seed3": ("evaluate", f"checkpoint={tiny_run.run_dir}", "episodes=20", "seed=3",
+                  f"hydra.run.dir={directory / 'seed3'}"),
+        "truncated": ("evaluate", f"checkpoint={truncated}", f"hydra.run.dir={directory / 'truncated'}"),
+    }
+    return {"directory": directory, "truncated_file": truncated, **run_cli.batch(jobs)}
+
+
+def test_evaluate_cli_writes_summary_and_files(cli_runs, tiny_run):
+    result = cli_runs["seed3"]
+    assert result.returncode == 0, result.stderr[-3000:]
+    output = cli_runs["directory"] / "seed3"
+    summary = json.loads(result.stdout.strip().splitlines()[-1])
+    assert json.dumps(summary) == json.dumps(json.loads((output / "eval.json").read_text()))
+    for key in ("success_rate", "instructions_per_episode", "ms_per_instruction", "outcomes"):
+        assert key in summary
+    assert summary["episodes"] == 20
+    assert summary["seed"] == 3
+    assert summary["checkpoint"] == str(tiny_run.run_dir / "checkpoints" / "latest.pt")
+    assert (summary["task"], summary["trained_task"], summary["method"]) == ("fixed", "fixed", "scratch")
+    rows = read_csv(output / "episodes.csv")
+    assert len(rows) == 20
+    assert summary["outcomes"]["success"] == sum(row["outcome"] == "success" for row in rows)
+    assert (output / "trajectories.png").stat().st_size > 1000
+
+
+def test_same_seed_gives_the_same_evaluation(cli_runs, tiny_run, compose_evaluate, tmp_path):
+    """The CLI run above and an in-process evaluation with the same arguments agree exactly."""
+    assert cli_runs["seed3"].returncode == 0, cli_runs["seed3"].stderr[-3000:]
+    cli_output = cli_runs["directory"] / "seed3"
+    config = compose_evaluate(f"checkpoint={tiny_run.run_dir}", "episodes=20", "seed=3",
+                              f"output_dir={tmp_path / 'again'}")
+    again = evaluate(config)
+    assert without_timing(again) == without_timing(json.loads((cli_output / "eval.json").read_text()))
+    assert (tmp_path / "again" / "episodes.csv").read_bytes() == (cli_output / "episodes.csv").read_bytes()
+
+    config = compose_evaluate(f"checkpoint={tiny_run.run_dir}", "episodes=20", "seed=4", "trajectories=0",
+                              f"output_dir={tmp_path / 'other'}")
+    evaluate(config)
+    assert (tmp_path / "other" / "episodes.csv").read_bytes() != (cli_output / "episodes.csv").read_bytes()
+    assert not (tmp_path / "other" / "trajectories.png").exists()  # trajectories=0: no figure
+
+
+def test_task_override_is_honoured(cli_runs, tiny_run, compose_evaluate, tmp_path):
+    config = compose_evaluate(f"checkpoint={tiny_run.run_dir}", "episodes=20", "seed=3", "task=uniform",
+                              "speed=20", "trajectories=0", f"output_dir={tmp_path}")
+    summary = evaluate(config)
+    saved = json.loads((tmp_path / "eval.json").read_text())
+    assert json.dumps(saved, sort_keys=True) == json.dumps(summary, sort_keys=True)
+    assert (summary["task"], summary["speed"], summary["trained_task"]) == ("uniform", 20.0, "fixed")
+    # A destination moving at 20 m/s changes the episodes' end points (same seed, same starts otherwise).
+    fixed = read_csv(cli_runs["directory"] / "seed3" / "episodes.csv")
+    moving = read_csv(tmp_path / "episodes.csv")
+    assert [row["final_distance_m"] for row in moving] != [row["final_distance_m"] for row in fixed]
+
+
+def test_corrupt_checkpoint_exits_2_with_one_line(cli_runs):
+    result = cli_runs["truncated"]
+    assert result.returncode == 2, result.stderr[-3000:]
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, lines
+    assert lines[0].startswith("agrl.evaluate: error:")
+    assert str(cli_runs["truncated_file"]) in lines[0]
+    assert "not a readable checkpoint" in lines[0]
+
+
+def test_evaluating_a_best_checkpoint_file(tiny_run, compose_evaluate, tmp_path):
+    best = tiny_run.run_dir / "checkpoints" / "best.pt"
+    summary = evaluate(compose_evaluate(f"checkpoint={best}", "episodes=8", "trajectories=0",
+                                        f"output_dir={tmp_path}"))
+    assert summary["checkpoint"] == str(best)
+    assert summary["episodes"] == 8
+    assert load_checkpoint(best)["counters"]["best_success"] >= 0.0  # written after a periodic evaluation
