@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 ARGS ?=
 
-.PHONY: install train test test-slow bench lint baseline clean
+.PHONY: install train test test-slow bench lint clean experiments-table3 experiments-moving report
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -31,6 +31,20 @@ bench: install
 
 lint: install
 	$(PY) -m ruff check agrl tests
+
+# The reproductions summarised in docs/results/ (hours of CPU; see those pages for the budgets used).
+MOVING := seed=0 ppo.max_minutes=3.5 target_success=0.99 progress=false
+experiments-moving: install
+	$(PY) -m agrl.train -m task=uniform speed=10,20,50,100 method=scratch,pretrained,reuse $(MOVING) hydra.sweep.dir=runs/moving/uniform
+	$(PY) -m agrl.train -m task=curved radius=500,1000,2000,5000 method=scratch,pretrained,reuse $(MOVING) hydra.sweep.dir=runs/moving/curved
+	$(PY) -m agrl.train -m task=irregular method=scratch,pretrained,reuse $(MOVING) hydra.sweep.dir=runs/moving/irregular
+
+experiments-table3: install
+	$(PY) -m agrl.train -m reward=none,continuous,position,both seed=0,1,2 ppo.max_minutes=5 progress=false hydra.sweep.dir=runs/table3
+
+report: install
+	$(PY) -m agrl.report table3 runs/table3
+	$(PY) -m agrl.report moving runs/moving --figures docs/results/figures
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache

@@ -105,7 +105,8 @@ def table3(runs: list[dict[str, Any]]) -> str:
         paper = PAPER_TABLE3[name]
         lines.append(
             f"| {name} | {len(group)} | {_mean_std(success, '.1f')} % | {_mean_std(instructions, '.2f')} | "
-            f"{_mean_std(latency, '.2f')} | {_mean_std(it95, '.0f')} ({n95}/{len(group)}) | {_mean_std(min95, '.1f')} | "
+            f"{_mean_std(latency, '.2f')} | {_mean_std(it95, '.0f')} ({n95}/{len(group)}) | "
+            f"{_mean_std(min95, '.1f')} | "
             f"{_mean_std(it99, '.0f')} ({n99}/{len(group)}) | {_mean_std(min99, '.1f')} | "
             f"{paper[0] * 100:.1f} %, {paper[1]}, {paper[2]} ms |"
         )

@@ -35,7 +35,11 @@ def _resume_config(cfg: DictConfig, reference: str) -> tuple[DictConfig, dict, P
     payload["_path"] = str(path)
     # The composed config carries the typed group schemas; the run's saved values go on top.
     saved = OmegaConf.merge(cfg, payload["config"])
-    overrides = [o for o in HydraConfig.get().overrides.task if o.split("=")[0].lstrip("+~").startswith(RESUMABLE_OVERRIDES)]
+    overrides = [
+        override
+        for override in HydraConfig.get().overrides.task
+        if override.split("=")[0].lstrip("+~").startswith(RESUMABLE_OVERRIDES)
+    ]
     saved = OmegaConf.merge(saved, OmegaConf.from_dotlist(overrides))
     saved.resume = str(reference)
     # A checkpoint inside a run directory continues there (even if the directory was moved).

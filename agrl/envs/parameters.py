@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import Enum
+from enum import StrEnum
 
 import torch
 
@@ -14,7 +14,7 @@ from agrl.core.reward import RewardParameters
 from agrl.core.simulation import SimulationParameters
 
 
-class MotionKind(str, Enum):
+class MotionKind(StrEnum):
     FIXED = "fixed"
     UNIFORM = "uniform"
     CURVED = "curved"

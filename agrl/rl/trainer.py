@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import copy
 import csv
-import dataclasses
 import json
 import logging
 import math

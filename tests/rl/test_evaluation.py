@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 
 import pytest
@@ -59,7 +60,10 @@ def test_summarise_without_successes():
     summary = summarise(records([Outcome.OUT_OF_AIRSPACE] * 4, instructions=[1, 2, 3, 4]))
     assert summary["success_rate"] == 0.0
     assert summary["success_rate_ci95"][0] == 0.0
-    assert math.isnan(summary["instructions_per_successful_episode"])
+    # No successful episode: nothing to average, reported as None (JSON null, so eval.json stays strict JSON).
+    assert summary["instructions_per_successful_episode"] is None
+    assert summary["decisions_per_successful_episode"] is None
+    json.dumps(summary, allow_nan=False)
     assert summary["instructions_per_episode"] == pytest.approx(2.5)
 
 
