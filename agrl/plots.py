@@ -77,7 +77,7 @@ def plot_success_against_time(curves: Mapping[str, Sequence[Path]], path: str | 
                 continue
             minutes = [row["wall_time"] / 60 for row in rows]
             values = [row[key] for row in rows]
-            axes.plot(minutes, values, label=label if number == 0 else None,
+            axes.plot(minutes, values, label=label if number == 0 else None, marker=".",
                       color=f"C{list(curves).index(label)}", alpha=0.85, linewidth=1.2)
     axes.set_xlabel("training wall time (min)")
     axes.set_ylabel(key.replace("/", " ").replace("_", " "))

@@ -40,11 +40,13 @@ def test_tiny_run_writes_checkpoints_metrics_and_evaluation(tiny_run):
     assert not list((run / "checkpoints").glob("*.tmp")), "temporary checkpoint files left behind"
 
     rows = read_csv(run / "metrics.csv")
-    assert [int(row["iteration"]) for row in rows] == list(range(1, tiny_run.iterations + 1))
-    assert [int(row["frames"]) for row in rows] == [512 * i for i in range(1, tiny_run.iterations + 1)]
+    # Row 0: the evaluation of the initial policy, before any training.
+    assert [int(row["iteration"]) for row in rows] == list(range(0, tiny_run.iterations + 1))
+    assert [int(row["frames"]) for row in rows] == [512 * i for i in range(0, tiny_run.iterations + 1)]
+    assert rows[0]["train/success_rate"] == "" and float(rows[0]["wall_time"]) == 0.0
     # Periodic evaluation every 2 iterations (eval.interval=2), training success every iteration.
-    assert [row["eval/success_rate"] != "" for row in rows] == [False, True, False, True]
-    assert all(0.0 <= float(row["train/success_rate"]) <= 1.0 for row in rows)
+    assert [row["eval/success_rate"] != "" for row in rows] == [True, False, True, False, True]
+    assert all(0.0 <= float(row["train/success_rate"]) <= 1.0 for row in rows[1:])
 
     assert (run / "eval" / "trajectories.png").stat().st_size > 1000
     episodes = read_csv(run / "eval" / "episodes.csv")
@@ -83,7 +85,7 @@ def test_tiny_run_tensorboard_scalars(tiny_run):
         assert tag in tags, f"{tag} missing from {sorted(tags)}"
     steps = [event.step for event in events.Scalars("time/decisions_per_second")]
     assert steps == [512 * i for i in range(1, tiny_run.iterations + 1)]
-    assert [event.step for event in events.Scalars("eval/success_rate")] == [1024, 2048]
+    assert [event.step for event in events.Scalars("eval/success_rate")] == [0, 1024, 2048]
     assert all(0.0 <= event.value <= 1.0 for event in events.Scalars("loss/clip_fraction"))
 
 

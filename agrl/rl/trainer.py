@@ -338,6 +338,11 @@ class Trainer:
         start = time.perf_counter()
         wall_offset = self.counters.wall_time
         self._snapshot = self._state()
+        if self.counters.iteration == 0 and cfg.eval.interval:
+            # Where the run starts from (for pretrained and reuse: the baseline's zero-shot success on this task).
+            evaluation, _ = self.evaluate()
+            self._log({"eval/success_rate": evaluation["success_rate"],
+                       "eval/instructions_per_episode": evaluation["instructions_per_episode"]})
         reason = self._finished(wall_offset)
         try:
             iterator = iter(self.collector)
