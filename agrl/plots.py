@@ -67,20 +67,26 @@ def read_metrics(path: str | Path) -> list[dict[str, float]]:
 
 
 def plot_success_against_time(curves: Mapping[str, Sequence[Path]], path: str | Path, title: str = "",
-                              key: str = "train/success_rate") -> Path:
-    """Success rate against training wall time, one line per label (mean over its runs' metrics.csv)."""
+                              key: str = "eval/success_rate") -> Path:
+    """Success against training wall time, one colour per label (the paper's Figures 5, 7 and 9).
+
+    Large dots: ``key`` (by default the periodic evaluation over the full start box); thin line: the training
+    success of each iteration (with the curriculum, scratch runs train on easier starts first).
+    """
     figure, axes = plt.subplots(figsize=(7, 4.5))
-    for label, files in curves.items():
+    for colour, (label, files) in enumerate(curves.items()):
         for number, file in enumerate(files):
-            rows = [row for row in read_metrics(file) if row.get(key) is not None]
-            if not rows:
-                continue
-            minutes = [row["wall_time"] / 60 for row in rows]
-            values = [row[key] for row in rows]
-            axes.plot(minutes, values, label=label if number == 0 else None, marker=".",
-                      color=f"C{list(curves).index(label)}", alpha=0.85, linewidth=1.2)
+            rows = read_metrics(file)
+            train = [(row["wall_time"] / 60, row["train/success_rate"]) for row in rows
+                     if row.get("train/success_rate") is not None]
+            evaluated = [(row["wall_time"] / 60, row[key]) for row in rows if row.get(key) is not None]
+            if train:
+                axes.plot(*zip(*train, strict=True), color=f"C{colour}", alpha=0.45, linewidth=1.0)
+            if evaluated:
+                axes.plot(*zip(*evaluated, strict=True), color=f"C{colour}", marker="o", linewidth=1.6,
+                          label=label if number == 0 else None)
     axes.set_xlabel("training wall time (min)")
-    axes.set_ylabel(key.replace("/", " ").replace("_", " "))
+    axes.set_ylabel("success rate (dots: evaluation, line: training)")
     axes.set_ylim(0, 1.02)
     axes.grid(alpha=0.3)
     axes.legend()

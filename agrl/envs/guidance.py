@@ -78,7 +78,6 @@ class GuidanceEnv(EnvBase):
     # ------------------------------------------------------------------ specs
     def _make_specs(self) -> None:
         batch = self.batch_size
-        airspace = self.params.simulation.airspace
         self.observation_spec = Composite(
             observation=Unbounded((*batch, OBSERVATION_SIZE), device=self.device),
             aircraft_state=Unbounded((*batch, 7), device=self.device),
@@ -103,7 +102,6 @@ class GuidanceEnv(EnvBase):
             shape=batch,
             device=self.device,
         )
-        del airspace
 
     def _set_seed(self, seed: int | None) -> None:
         self._generator.manual_seed(int(seed) if seed is not None else 0)
