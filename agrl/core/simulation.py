@@ -125,8 +125,9 @@ class DecisionSimulator:
 
         Rows with ``active=False`` are left unchanged (used to freeze finished episodes).
         """
-        aircraft = AircraftState.from_tensor(aircraft_state)
-        destination = DestinationState.from_tensor(destination_state)
+        # Contiguous fields: the fused step then sees the same strides at every substep (no recompilation).
+        aircraft = AircraftState(*(field.contiguous() for field in aircraft_state.unbind(-1)))
+        destination = DestinationState(*(field.contiguous() for field in destination_state.unbind(-1)))
         axial_excess = self.controls.axial_excess[action]
         normal_load = self.controls.normal_load[action]
         turn_direction = self.controls.turn_direction[action]

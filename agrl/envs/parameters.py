@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -33,7 +35,7 @@ class DestinationMotion:
     # irregular: re-drawn at each decision with this probability, within these bounds
     change_probability: float = 0.2
     speed_range: tuple[float, float] = (10.0, 50.0)  # m/s
-    max_turn_rate: float = 0.04  # rad/s
+    max_turn_rate: float = math.radians(2.3)  # rad/s: 20 m/s on a 500 m radius
 
     def initial_motion(
         self, count: int, generator: torch.Generator | None, device: torch.device
