@@ -140,23 +140,15 @@ def bench_reference(params: GuidanceParameters, repeats: int, min_seconds: float
     }
 
 
-def bench_simulator(params: GuidanceParameters, batch: int, compiled: bool, device: torch.device,
-                    repeats: int, min_seconds: float) -> dict:
-    """Decisions per second of :class:`DecisionSimulator` for ``batch`` rows (one decision per call)."""
-    if compiled:
-        torch._dynamo.reset()  # a static-shape compilation for this batch size, as in training
-    simulator = DecisionSimulator(params.simulation, params.maneuvers.controls(device), compile=compiled)
-    inputs = _inputs(params, batch, device)
-
-    def one_decision():
-        return simulator(*inputs)
-
+def _time_decisions(name: str, one_decision, batch: int, simulator: DecisionSimulator, params: GuidanceParameters,
+                    device: torch.device, repeats: int, min_seconds: float) -> dict:
+    """Time ``one_decision`` (one decision for ``batch`` rows) and report decisions per second."""
     with torch.no_grad():
         start = time.perf_counter()
-        seconds, calls = time_call(one_decision, repeats, min_seconds, warmup=3 if compiled else 1,
+        seconds, calls = time_call(one_decision, repeats, min_seconds, warmup=3 if simulator.compiled else 1,
                                    sync=_synchronize(device))
     return {
-        "name": "simulator_decisions_per_second",
+        "name": name,
         "value": _significant(batch / seconds),
         "unit": "decisions/s",
         "batch": batch,
@@ -169,6 +161,17 @@ def bench_simulator(params: GuidanceParameters, batch: int, compiled: bool, devi
         "repeats": repeats,
         "wall_seconds_with_warmup": round(time.perf_counter() - start, 1),
     }
+
+
+def bench_simulator(params: GuidanceParameters, batch: int, compiled: bool, device: torch.device,
+                    repeats: int, min_seconds: float) -> dict:
+    """Decisions per second of :class:`DecisionSimulator` for ``batch`` rows (one decision per call)."""
+    if compiled:
+        torch._dynamo.reset()  # a static-shape compilation for this batch size, as in training
+    simulator = DecisionSimulator(params.simulation, params.maneuvers.controls(device), compile=compiled)
+    inputs = _inputs(params, batch, device)
+    return _time_decisions("simulator_decisions_per_second", lambda: simulator(*inputs), batch, simulator, params,
+                           device, repeats, min_seconds)
 
 
 def bench_torchrl_env(params: GuidanceParameters, batch: int, compiled: bool, device: torch.device,
@@ -186,24 +189,8 @@ def bench_torchrl_env(params: GuidanceParameters, batch: int, compiled: bool, de
         carrier["action"] = env.action_spec.rand()
         _, state[0] = env.step_and_maybe_reset(carrier)
 
-    with torch.no_grad():
-        start = time.perf_counter()
-        seconds, calls = time_call(one_decision, repeats, min_seconds, warmup=3 if compiled else 1,
-                                   sync=_synchronize(device))
-    return {
-        "name": "torchrl_env_decisions_per_second",
-        "value": _significant(batch / seconds),
-        "unit": "decisions/s",
-        "batch": batch,
-        "compiled": env.simulator.compiled,
-        "substeps": env.simulator.substeps,
-        "integration_step": params.simulation.integration_step,
-        "device": str(device),
-        "seconds_per_call": _significant(seconds),
-        "calls_per_timing": calls,
-        "repeats": repeats,
-        "wall_seconds_with_warmup": round(time.perf_counter() - start, 1),
-    }
+    return _time_decisions("torchrl_env_decisions_per_second", one_decision, batch, env.simulator, params,
+                           device, repeats, min_seconds)
 
 
 # ---------------------------------------------------------------------------- machine and CLI

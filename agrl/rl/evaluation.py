@@ -49,43 +49,35 @@ def run_episodes(
     count = env.batch_size.numel()
     device = env.device
     initial = td["aircraft_state"].clone()
-    outcome = torch.zeros(count, dtype=torch.int64, device=device)
-    decisions = torch.zeros(count, dtype=torch.int64, device=device)
-    instructions = torch.zeros(count, dtype=torch.int64, device=device)
-    episode_return = torch.zeros(count, device=device)
-    final_distance = torch.zeros(count, device=device)
+    # Each row's state at the end of its first episode; the env itself counts decisions, instructions, return.
+    final_keys = ("aircraft_state", "destination_state", "outcome", "step_count", "instruction_count", "episode_return")
+    final = td.select(*final_keys).clone()
     running = torch.ones(count, dtype=torch.bool, device=device)
     aircraft_path = [td["aircraft_state"].clone()] if record_trajectories else None
     destination_path = [td["destination_state"].clone()] if record_trajectories else None
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         for _ in range(env.params.max_decisions):
-            td = actor(td)
-            changed = td["action"] != td["last_action"]
-            td = env.step(td)
+            td = env.step(actor(td))
             step = td["next"]
-            decisions += running
-            instructions += running & changed
-            episode_return += torch.where(running, step["reward"].squeeze(-1), 0.0)
             if record_trajectories:
                 aircraft_path.append(torch.where(running[:, None], step["aircraft_state"], aircraft_path[-1]))
                 destination_path.append(
                     torch.where(running[:, None], step["destination_state"], destination_path[-1])
                 )
             finished = running & step["done"].squeeze(-1)
-            outcome = torch.where(finished, step["outcome"], outcome)
-            relative = step["aircraft_state"][:, :2] - step["destination_state"][:, :2]
-            final_distance = torch.where(finished, relative.norm(dim=-1), final_distance)
+            final = step.select(*final_keys).where(finished, final)
             running &= ~finished
             if not bool(running.any()):
                 break
             td = step_mdp(td)
+    relative = final["aircraft_state"][:, :2] - final["destination_state"][:, :2]
     return EpisodeRecords(
         initial_aircraft_state=initial.cpu(),
-        outcome=outcome.cpu(),
-        decisions=decisions.cpu(),
-        instructions=instructions.cpu(),
-        episode_return=episode_return.cpu(),
-        final_distance=final_distance.cpu(),
+        outcome=final["outcome"].cpu(),
+        decisions=final["step_count"].cpu(),
+        instructions=final["instruction_count"].cpu(),
+        episode_return=final["episode_return"].cpu(),
+        final_distance=relative.norm(dim=-1).cpu(),
         trajectory_aircraft=torch.stack(aircraft_path, 1).cpu() if record_trajectories else None,
         trajectory_destination=torch.stack(destination_path, 1).cpu() if record_trajectories else None,
     )
