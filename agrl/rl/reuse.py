@@ -135,12 +135,13 @@ class PolicyReuseTransform(Transform):
 
         relabelled_rows = None
         succeeded = torch.zeros(episodes, dtype=torch.bool, device=device)
+        dropped = torch.zeros_like(succeeded)
         if episodes:
             trajectory, motion = self._destination_prediction(rows, starts, traj_ids)
             winner_step, winner_index = self._search(rows[starts], trajectory, motion)
-            succeeded = winner_index >= 0
-            if bool(succeeded.any()):
-                found = succeeded.nonzero().squeeze(-1)
+            found, dropped = self._fitting(winner_index >= 0, winner_step, traj_ids, traj_ids[starts], rows.numel())
+            succeeded |= dropped  # found, but their rows would fall past max_rows: neither own nor re-played
+            if found.numel():
                 relabelled_rows, replayed = self._replay(rows[starts[found]], trajectory[found], motion[found],
                                                          winner_step[found], winner_index[found])
                 # The replay decides (see _replay): an episode whose replay did not succeed keeps its own rows.
@@ -158,7 +159,7 @@ class PolicyReuseTransform(Transform):
             "train/e": self.selection_factor,
             "train/reuse_fraction": relabelled_count / max(output.numel(), 1),
             "train/reuse_episodes_selected": episodes,
-            "train/reuse_episodes_relabelled": int(succeeded.sum()),
+            "train/reuse_episodes_relabelled": int((succeeded & ~dropped).sum()),
             "time/reuse_relabel_seconds": time.perf_counter() - start_time,
         }
         return output
@@ -256,6 +257,28 @@ class PolicyReuseTransform(Transform):
         winner_index = torch.where(found, best, -1)
         winner_row = torch.arange(episodes, device=device) * candidates + winner_index.clamp(min=0)
         return torch.where(found, arrival[winner_row], 0), winner_index
+
+    def _fitting(
+        self, found: torch.Tensor, arrival: torch.Tensor, traj_ids: torch.Tensor, episode_ids: torch.Tensor,
+        rows: int,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Which found episodes to re-play: those whose re-played rows will be inside ``max_rows``.
+
+        The output is the kept own rows, then the re-played episodes in order, cut at ``max_rows``.
+        Re-playing an episode whose rows all fall past the cut is wasted work (early in training, when
+        the agent's episodes are short, most of the work), so those are not re-played. Returns the indices
+        to re-play and a mask of the found episodes that are dropped (they would have been cut anyway).
+        """
+        index = found.nonzero().squeeze(-1)
+        dropped = torch.zeros_like(found)
+        if self.max_rows is None or index.numel() == 0:
+            return index, dropped
+        ids, counts = torch.unique(traj_ids, return_counts=True)  # sorted ids
+        own_kept = rows - int(counts[torch.searchsorted(ids, episode_ids[index])].sum())
+        first_row = own_kept + torch.cumsum(arrival[index], 0) - arrival[index]
+        fits = first_row < self.max_rows
+        dropped[index[~fits]] = True
+        return index[fits], dropped
 
     def _replay(
         self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor,

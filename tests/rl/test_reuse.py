@@ -450,6 +450,19 @@ def test_reuse_fraction_is_the_share_of_relabelled_rows_in_the_output(relabelled
     assert 0.0 < stats["train/reuse_fraction"] <= 1.0
 
 
+def test_episodes_past_max_rows_are_not_replayed_and_the_output_is_the_cut_one(relabelled):
+    """Not re-playing episodes that would fall past ``max_rows`` saves work and changes nothing stored."""
+    uncut = relabelled.out
+    relabelled.collected.received.clear()
+    transform = relabelled.collected.transform(max_rows=40)
+    cut = transform.relabel(relabelled.flat)
+    assert cut.numel() == 40 < uncut.numel()
+    assert (cut == uncut[:40]).all()
+    replayed = relabelled.collected.received[0].batch_size[0]
+    assert replayed < relabelled.trajectories.batch_size[0], "fewer episodes were re-played"
+    assert transform.last_statistics()["train/reuse_episodes_relabelled"] == replayed
+
+
 # ---------------------------------------------------------------------------- which candidate is kept
 class SkittishLogits(PursuitLogits):
     """Pursuit, but pull up when the target is within 2.5 km: B succeeds only if steered far enough ahead,
