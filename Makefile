@@ -33,11 +33,11 @@ lint: install
 	$(PY) -m ruff check agrl tests
 
 # The reproductions summarised in docs/results/ (hours of CPU; see those pages for the budgets used).
-MOVING := seed=0 ppo.max_minutes=3.5 target_success=0.99 progress=false
+MOVING := seed=0,1,2 ppo.max_minutes=3 target_success=0.99 progress=false
 experiments-moving: install
-	$(PY) -m agrl.train -m task=uniform speed=10,20,50,100 method=scratch,pretrained,reuse $(MOVING) hydra.sweep.dir=runs/moving/uniform
-	$(PY) -m agrl.train -m task=curved radius=500,1000,2000,5000 method=scratch,pretrained,reuse $(MOVING) hydra.sweep.dir=runs/moving/curved
-	$(PY) -m agrl.train -m task=irregular method=scratch,pretrained,reuse $(MOVING) hydra.sweep.dir=runs/moving/irregular
+	$(PY) -m agrl.train -m $(MOVING) task=uniform speed=10,20,50,100 method=scratch,pretrained,reuse hydra.sweep.dir=runs/moving/uniform
+	$(PY) -m agrl.train -m $(MOVING) task=curved radius=500,1000,2000,5000 method=scratch,pretrained,reuse hydra.sweep.dir=runs/moving/curved
+	$(PY) -m agrl.train -m $(MOVING) task=irregular method=scratch,pretrained,reuse hydra.sweep.dir=runs/moving/irregular
 
 experiments-table3: install
 	$(PY) -m agrl.train -m reward=none,continuous,position,both seed=0,1,2 ppo.max_minutes=5 progress=false hydra.sweep.dir=runs/table3

@@ -216,6 +216,7 @@ class MethodConfig:
     keep: str = "earliest"  # which successful candidate to keep: earliest | latest
     behaviour_log_prob: str = "baseline"  # relabelled rows' PPO behaviour log-prob: current (Z's) | baseline (B's)
     use_curriculum: bool = True  # apply the root `curriculum` (off for methods that start from a baseline)
+    start_from_baseline: bool = False  # reuse only: Z starts from B's weights (reuse + pre-training)
 
     def __post_init__(self) -> None:
         _require(self.name in ("scratch", "pretrained", "reuse"), "method", self.name,
@@ -230,6 +231,8 @@ class MethodConfig:
         _require(self.keep in ("earliest", "latest"), "method.keep", self.keep, "earliest or latest")
         _require(self.behaviour_log_prob in ("current", "baseline"), "method.behaviour_log_prob",
                  self.behaviour_log_prob, "current or baseline")
+        _require(not self.start_from_baseline or self.name == "reuse", "method.start_from_baseline",
+                 self.start_from_baseline, "true only with method=reuse (pretrained always starts from it)")
 
 
 @dataclass

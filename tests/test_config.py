@@ -88,6 +88,8 @@ def test_wrong_type_names_the_value():
         (("simulation.initial_state.x_range=[-20000,0]",), "simulation.initial_state.x_range"),
         (("ppo.minibatch_size=100000000",), "ppo.minibatch_size"),
         (("task=irregular", "task.change_probability=2"), "task.change_probability"),
+        (("method=pretrained", "method.start_from_baseline=true"), "method.start_from_baseline"),
+        (("method.start_from_baseline=true",), "method.start_from_baseline"),
     ],
 )
 def test_config_errors_are_one_line_and_name_the_key(overrides, named):

@@ -146,7 +146,7 @@ class Trainer:
     def _load_baseline(self, reference: str) -> None:
         path = resolve_checkpoint_path(reference)
         payload = load_checkpoint(path, required=("actor", "critic"))
-        if self.cfg.method.name == "pretrained":
+        if self.cfg.method.name == "pretrained" or self.cfg.method.start_from_baseline:
             load_module_state(self.actor, payload["actor"], path, "actor")
             load_module_state(self.critic, payload["critic"], path, "critic")
         baseline_cfg = payload.get("config", {}).get("agent", {})

@@ -143,15 +143,18 @@ def test_pretrained_from_a_differently_sized_actor_is_a_one_line_error(
     assert message.startswith(f"{baseline}: the actor network does not match")
 
 
-def test_pretrained_from_a_matching_checkpoint_copies_its_weights(small_trainer, compose_train, tiny_args,
-                                                                 tmp_path):
+@pytest.mark.parametrize(
+    ("method", "copied"),
+    [(("method=pretrained",), True), (("method=reuse", "method.start_from_baseline=true"), True),
+     (("method=reuse",), False)],
+)
+def test_pretrained_and_reuse_from_baseline_copy_its_weights(small_trainer, compose_train, tiny_args, tmp_path,
+                                                            method, copied):
     baseline = small_trainer.checkpoint_dir / "latest.pt"
-    config = compose_train(*tiny_args({"agent.actor_hidden": "[32]"}), "method=pretrained",
-                           f"method.baseline={baseline}")
+    config = compose_train(*tiny_args({"agent.actor_hidden": "[32]"}), *method, f"method.baseline={baseline}")
     trainer = Trainer(config, tmp_path / "run")
     saved = load_checkpoint(baseline)
-    for name, value in trainer.actor.state_dict().items():
-        assert torch.equal(value, saved["actor"][name]), name
-    for name, value in trainer.critic.state_dict().items():
-        assert torch.equal(value, saved["critic"][name]), name
+    for network, state in (("actor", trainer.actor.state_dict()), ("critic", trainer.critic.state_dict())):
+        same = [torch.equal(value, saved[network][name]) for name, value in state.items()]
+        assert all(same) if copied else not any(same), network
     trainer.collector.shutdown()
