@@ -62,6 +62,15 @@ class TaskConfig:
         _require(self.max_turn_rate_deg >= 0, "task.max_turn_rate_deg", self.max_turn_rate_deg, ">= 0 deg/s")
 
 
+def task_label(task) -> str:
+    """A short human name of a task config for titles: ``uniform 50 m/s``, ``curved 20 m/s, radius 500 m``."""
+    if task.name == "uniform":
+        return f"uniform {task.speed:g} m/s"
+    if task.name == "curved":
+        return f"curved {task.speed:g} m/s, radius {task.radius:g} m"
+    return str(task.name)
+
+
 # ---------------------------------------------------------------------------- reward
 @dataclass
 class RewardConfig:

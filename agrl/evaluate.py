@@ -24,6 +24,7 @@ from agrl.config import (
     SimulationConfig,
     TaskConfig,
     load_config,
+    task_label,
     to_guidance_parameters,
 )
 from agrl.rl.checkpoint import CheckpointError, load_checkpoint, load_module_state, resolve_checkpoint_path
@@ -73,7 +74,7 @@ def evaluate(cfg) -> dict[str, Any]:
     write_evaluation(output, summary, records)
     if cfg.trajectories:
         plot_trajectories(records, output / "trajectories.png", params.simulation.airspace, cfg.trajectories,
-                          title=f"{task.name} task, agent from {path.name}")
+                          title=f"{task_label(task)}, agent from {path.name}")
     return summary
 
 

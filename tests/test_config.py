@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from hydra import compose, initialize_config_dir
 
-from agrl.config import ConfigError, TaskConfig, load_config, to_guidance_parameters
+from agrl.config import ConfigError, TaskConfig, load_config, task_label, to_guidance_parameters
 from agrl.envs import MotionKind
 
 CONFIG_DIR = str((Path(__file__).resolve().parent.parent / "conf").resolve())
@@ -98,3 +98,9 @@ def test_config_errors_are_one_line_and_name_the_key(overrides, named):
     message = str(info.value)
     assert named in message
     assert "\n" not in message
+
+
+def test_task_label_names_the_motion_parameters():
+    assert task_label(TaskConfig(name="uniform", speed=50.0)) == "uniform 50 m/s"
+    assert task_label(TaskConfig(name="curved", speed=20.0, radius=500.0)) == "curved 20 m/s, radius 500 m"
+    assert task_label(TaskConfig(name="fixed")) == "fixed"

@@ -31,7 +31,7 @@ from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
 from torchrl.record.loggers import TensorboardLogger
 
-from agrl.config import TrainConfig, to_guidance_parameters
+from agrl.config import TrainConfig, task_label, to_guidance_parameters
 from agrl.core.initial_states import scale_distribution
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import GuidanceEnv
@@ -448,7 +448,7 @@ class Trainer:
         })
         write_evaluation(self.run_dir / "eval", summary, records)
         plot_trajectories(records, self.run_dir / "eval" / "trajectories.png", self.params.simulation.airspace,
-                          title=f"{self.cfg.task.name} task, {self.cfg.method.name}: 10 evaluation episodes")
+                          title=f"{task_label(self.cfg.task)}, {self.cfg.method.name}: 10 evaluation episodes")
         return summary
 
 
