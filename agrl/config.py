@@ -221,7 +221,7 @@ class MethodConfig:
     initial_selection_factor: float = 1.0  # e at the start (Algorithm 1)
     selection_decay: float = 2e-5  # k, subtracted from e per relabelled episode
     candidate_stride: int = 1  # consider every n-th step as a termination step t_n
-    max_candidates: int = 32  # at most this many t_n per episode (evenly spread)
+    max_candidates: int = 16  # at most this many t_n per episode (evenly spread)
     keep: str = "earliest"  # which successful candidate to keep: earliest | latest
     behaviour_log_prob: str = "baseline"  # relabelled rows' PPO behaviour log-prob: current (Z's) | baseline (B's)
     use_curriculum: bool = True  # apply the root `curriculum` (off for methods that start from a baseline)

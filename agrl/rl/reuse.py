@@ -26,9 +26,10 @@ candidates. Stored tuples carry the real destination fields, so PPO trains the
 new agent on its own task. The transform never writes into its input.
 
 Actions of relabelled rows come from B, not from the policy being trained, so the
-PPO quantities are recomputed for them by ``ppo_targets`` (in the trainer: the
-current policy's log-probability of B's action as the behaviour log-probability,
-values and GAE advantages on the re-played trajectories).
+PPO quantities are recomputed for them by ``ppo_targets(trajectories, valid)``
+(in the trainer, :func:`relabelled_ppo_targets`: a behaviour log-probability,
+values and GAE advantages on the re-played trajectories; ``valid`` marks the
+rows that are not padding).
 """
 
 from __future__ import annotations
@@ -63,6 +64,34 @@ def candidate_steps(max_decisions: int, stride: int, max_candidates: int) -> tor
     return grid
 
 
+@torch.no_grad()
+def relabelled_ppo_targets(
+    trajectories: TensorDictBase, valid: torch.Tensor, *, critic: Callable, advantage: Callable,
+    actor=None,
+) -> TensorDictBase:
+    """What PPO needs for re-played trajectories ``(episodes, steps)``, computed on the ``valid`` rows only.
+
+    The behaviour log-probability is B's (``baseline_log_prob``), or, with ``actor`` given, that actor's
+    log-probability of B's action (``method.behaviour_log_prob=current``). The critic runs on the valid rows
+    (padding gets a value of 0 and is marked terminal by the caller, so it never reaches an advantage), then
+    ``advantage`` (a value estimator built without a value network, e.g. ``GAE(value_network=None)``) computes
+    the advantages and value targets along the time dimension.
+    """
+    rows = trajectories[valid]
+    if actor is None:
+        trajectories["action_log_prob"] = trajectories["baseline_log_prob"]
+    else:
+        log_prob = torch.zeros(valid.shape, device=valid.device)
+        log_prob[valid] = actor.get_dist(rows).log_prob(rows["action"])
+        trajectories["action_log_prob"] = log_prob
+    for key in ((), ("next",)):
+        source = rows if not key else rows.get(key[0])
+        value = torch.zeros(*valid.shape, 1, device=valid.device)
+        value[valid] = critic(source.select("observation"))["state_value"]
+        trajectories.set((*key, "state_value"), value)
+    return advantage(trajectories)
+
+
 class PolicyReuseTransform(Transform):
     """Rewrites collected episodes with a frozen baseline actor (Algorithm 1); see the module docstring."""
 
@@ -71,7 +100,7 @@ class PolicyReuseTransform(Transform):
         baseline_actor: torch.nn.Module,
         env: GuidanceEnv,
         *,
-        ppo_targets: Callable[[TensorDictBase], TensorDictBase],
+        ppo_targets: Callable[[TensorDictBase, torch.Tensor], TensorDictBase],
         initial_selection_factor: float = 1.0,
         selection_decay: float = 0.0,
         candidate_stride: int = 1,
@@ -297,25 +326,40 @@ class PolicyReuseTransform(Transform):
         state = _initial_state(start_rows, rows_index)
         state["observation"] = self.env.observe(state)
         length = int(arrival.max())
-        steps = []
+        # Each episode's terminal step and outcome; finished episodes leave the batch (as in the search), and their
+        # transitions are written into a table preallocated from the first step.
+        last_step = torch.full((episodes,), length - 1, dtype=torch.long, device=device)
+        outcome = torch.full((episodes,), int(Outcome.RUNNING), dtype=torch.long, device=device)
+        alive = rows_index
+        trajectories = None
         for step in range(length):
-            query = self._baseline_query(state, predicted)
+            query = self._baseline_query(state, predicted[alive])
             state["action"] = query["action"]
             state["baseline_log_prob"] = query["action_log_prob"]
-            next_state = self.env.transition(state, motion[:, step, 0], motion[:, step, 1])
-            steps.append(state.clone().set("next", next_state))
-            state = next_state.exclude("reward", "done", "terminated", "outcome")
-        trajectories = torch.stack(steps, 1)  # (episodes, length)
-        terminal = trajectories["next", "done"].squeeze(-1)
-        ended = terminal.any(-1)
-        first_terminal = torch.where(ended, terminal.int().argmax(-1), length - 1)
-        outcome = trajectories["next", "outcome"].gather(1, first_terminal[:, None]).squeeze(1)
-        replayed = ended & (outcome == Outcome.SUCCESS)
-        valid = (torch.arange(length, device=device)[None, :] <= first_terminal[:, None]) & replayed[:, None]
-        # Rows past an episode's success are padding: mark them terminal so GAE does not mix them in.
+            next_state = self.env.transition(state, motion[alive, step, 0], motion[alive, step, 1])
+            record = state.set("next", next_state)
+            if trajectories is None:
+                trajectories = record.unsqueeze(1).expand(episodes, length).clone()
+            else:
+                trajectories[alive, step] = record
+            ended = next_state["done"].squeeze(-1)
+            if bool(ended.any()):
+                last_step[alive[ended]] = step
+                outcome[alive[ended]] = next_state["outcome"][ended].long()
+            alive = alive[~ended]
+            if alive.numel() == 0:
+                break
+            state = next_state[~ended].exclude("reward", "done", "terminated", "outcome")
+        replayed = outcome == Outcome.SUCCESS
+        if bool(replayed.any()):
+            # Steps after the last successful episode's end are padding for every episode: cut them.
+            length = int(last_step[replayed].max()) + 1
+            trajectories = trajectories[:, :length]
+        valid = (torch.arange(length, device=device)[None, :] <= last_step[:, None]) & replayed[:, None]
+        # Rows past an episode's end are padding: mark them terminal so GAE does not mix them in.
         trajectories["next", "done"] = trajectories["next", "done"] | ~valid[..., None]
         trajectories["next", "terminated"] = trajectories["next", "terminated"] | ~valid[..., None]
-        trajectories = self.ppo_targets(trajectories)
+        trajectories = self.ppo_targets(trajectories, valid)
         flat = trajectories[valid]
         flat["relabelled"] = torch.ones(flat.batch_size, dtype=torch.bool, device=device)
         return flat.select(*PPO_KEYS), replayed

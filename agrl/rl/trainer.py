@@ -105,6 +105,9 @@ class Trainer:
             gamma=cfg.reward.gamma, lmbda=ppo.gae_lambda, value_network=self.critic, average_gae=False,
             device=self.device,
         )
+        # For re-played trajectories the critic's values are computed on their valid rows only (agrl.rl.reuse).
+        self.replay_advantage = GAE(gamma=cfg.reward.gamma, lmbda=ppo.gae_lambda, value_network=None,
+                                    average_gae=False, device=self.device)
         self.loss = ClipPPOLoss(
             self.actor, self.critic, clip_epsilon=ppo.clip_epsilon, entropy_coeff=ppo.entropy_coeff,
             critic_coeff=ppo.critic_coeff, normalize_advantage=True, loss_critic_type="smooth_l1",
@@ -175,14 +178,13 @@ class Trainer:
             seed=self.cfg.seed,
         )
 
-    @torch.no_grad()
-    def _ppo_targets(self, trajectories: TensorDictBase) -> TensorDictBase:
+    def _ppo_targets(self, trajectories: TensorDictBase, valid: torch.Tensor) -> TensorDictBase:
         """What PPO needs for relabelled trajectories: a behaviour log-prob and GAE (see docs/policy_reuse.md)."""
-        if self.cfg.method.behaviour_log_prob == "baseline":
-            trajectories["action_log_prob"] = trajectories["baseline_log_prob"]
-        else:
-            trajectories["action_log_prob"] = self.actor.get_dist(trajectories).log_prob(trajectories["action"])
-        return self.advantage(trajectories)
+        from agrl.rl.reuse import relabelled_ppo_targets
+
+        actor = self.actor if self.cfg.method.behaviour_log_prob == "current" else None
+        return relabelled_ppo_targets(trajectories, valid, critic=self.critic, advantage=self.replay_advantage,
+                                      actor=actor)
 
     def _apply_curriculum(self) -> None:
         scale = min(1.0, self.counters.curriculum_scale)

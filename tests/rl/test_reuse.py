@@ -36,7 +36,7 @@ from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
 from agrl.envs.parameters import DestinationMotion
 from agrl.rl.checkpoint import save_checkpoint
 from agrl.rl.models import make_actor, make_critic
-from agrl.rl.reuse import PPO_KEYS, TRAJECTORY_KEY, PolicyReuseTransform, candidate_steps
+from agrl.rl.reuse import PPO_KEYS, TRAJECTORY_KEY, PolicyReuseTransform, candidate_steps, relabelled_ppo_targets
 
 BUDGET = 20  # decisions per episode: keeps the eager simulation cheap
 NUM_ENVS = 4
@@ -105,6 +105,7 @@ class Collected:
         self.actor = make_actor([32, 32], "tanh")
         self.critic = make_critic([32, 32], "tanh")
         self.gae = GAE(gamma=0.99, lmbda=0.95, value_network=self.critic, average_gae=False)
+        self.replay_gae = GAE(gamma=0.99, lmbda=0.95, value_network=None, average_gae=False)
         collector = Collector(self.env, self.actor, frames_per_batch=NUM_ENVS * BUDGET, total_frames=-1,
                               auto_register_policy_transforms=False)
         data = next(iter(collector))
@@ -117,11 +118,12 @@ class Collected:
         return self.data.clone().reshape(-1)
 
     @torch.no_grad()
-    def ppo_targets(self, trajectories):
+    def ppo_targets(self, trajectories, valid):
         """The trainer's ``_ppo_targets`` (current-actor log-prob, GAE), keeping a copy of its input."""
         self.received.append(trajectories.clone())
-        trajectories["action_log_prob"] = self.actor.get_dist(trajectories).log_prob(trajectories["action"])
-        return self.gae(trajectories)
+        self.received_valid = valid.clone()
+        return relabelled_ppo_targets(trajectories, valid, critic=self.critic, advantage=self.replay_gae,
+                                      actor=self.actor)
 
     def transform(self, baseline=None, **kwargs) -> PolicyReuseTransform:
         kwargs.setdefault("max_candidates", BUDGET)
@@ -318,6 +320,21 @@ def test_success_ends_each_relabelled_episode_and_gae_does_not_look_past_it(rela
     # The behaviour log-probability is the current actor's for B's action (PPO's ratio starts at 1).
     expected = relabelled.collected.actor.get_dist(rows).log_prob(rows["action"])
     torch.testing.assert_close(rows["action_log_prob"], expected)
+
+
+def test_ppo_targets_on_valid_rows_equal_gae_on_the_whole_table(relabelled):
+    """The critic runs on the valid rows only; the advantages equal TorchRL's GAE run on the padded table."""
+    collected = relabelled.collected
+    trajectories, valid = relabelled.trajectories.clone(), collected.received_valid
+    assert bool(valid.any()) and not bool(valid.all()), "the table holds padding"
+    masked = relabelled_ppo_targets(trajectories.clone(), valid, critic=collected.critic,
+                                    advantage=collected.replay_gae)
+    with torch.no_grad():
+        full = collected.gae(trajectories.clone())
+    for key in ("state_value", ("next", "state_value"), "advantage", "value_target"):
+        torch.testing.assert_close(masked[key][valid], full[key][valid])
+    # Without an actor the behaviour log-probability is B's own.
+    torch.testing.assert_close(masked["action_log_prob"], trajectories["baseline_log_prob"])
 
 
 def test_rewards_are_the_environments_for_the_real_destination(relabelled):
