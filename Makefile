@@ -28,6 +28,7 @@ test-slow: install
 
 bench: install
 	$(PY) -m agrl.bench $(ARGS)
+	$(PY) -m agrl.bench_reuse
 
 lint: install
 	$(PY) -m ruff check agrl tests

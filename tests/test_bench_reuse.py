@@ -1,0 +1,45 @@
+"""Smoke test of ``python -m agrl.bench_reuse --quick``: output format and counts, no timing assertions."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from agrl.bench_reuse import parse_args
+
+
+def test_quick_run_times_each_candidate_count(tmp_path):
+    command = [sys.executable, "-m", "agrl.bench_reuse", "--quick", "--candidates", "2", "4"]
+    environment = {**os.environ, "OMP_NUM_THREADS": "1"}  # small tensors: one thread (see conftest)
+    completed = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path, env=environment)
+    assert completed.returncode == 0, completed.stderr
+    records = [json.loads(line) for line in completed.stdout.splitlines() if line.strip()]
+    assert [record["name"] for record in records] == ["machine", "reuse_relabel", "reuse_relabel"]
+    timed = records[1:]
+    assert [record["candidates"] for record in timed] == [2, 4]
+    for record in timed:
+        assert record["unit"] == "s per batch" and record["value"] > 0
+        assert record["batch_rows"] == 64 * 16
+        # e = 1: every episode starting in the batch is selected, and the untrained agent's are short.
+        assert record["episodes_selected"] >= 64
+        assert 0 <= record["episodes_relabelled"] <= record["episodes_selected"]
+        assert 0.0 <= record["reuse_fraction"] <= 1.0 and record["rows_stored"] > 0
+
+
+def test_arguments():
+    default = parse_args([])
+    assert default.candidates == [8, 16, 32] and default.repeats == 3
+    assert default.overrides == ["task=uniform", "speed=50", "method=reuse", "progress=false"]
+    custom = parse_args(["task=curved", "radius=500", "--candidates", "16", "--selection-factor", "0.5"])
+    assert custom.overrides[:2] == ["task=curved", "radius=500"] and custom.selection_factor == 0.5
+
+
+@pytest.mark.parametrize("argv", [["--selection-factor", "1.5"], ["--candidates", "0"]])
+def test_bad_arguments_are_one_line_errors(argv, capsys):
+    with pytest.raises(SystemExit):
+        parse_args(argv)
+    assert "is not allowed" in capsys.readouterr().err
