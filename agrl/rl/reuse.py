@@ -40,6 +40,7 @@ from collections.abc import Callable
 import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import ExplorationType, Transform, set_exploration_type
+from torchrl.modules import ProbabilisticActor
 
 from agrl.core.destinations import DestinationState, move_destination
 from agrl.core.observation import policy_observation
@@ -67,7 +68,7 @@ def candidate_steps(max_decisions: int, stride: int, max_candidates: int) -> tor
 @torch.no_grad()
 def relabelled_ppo_targets(
     trajectories: TensorDictBase, valid: torch.Tensor, *, critic: Callable, advantage: Callable,
-    actor=None,
+    actor: ProbabilisticActor | None = None,
 ) -> TensorDictBase:
     """What PPO needs for re-played trajectories ``(episodes, steps)``, computed on the ``valid`` rows only.
 
@@ -84,11 +85,10 @@ def relabelled_ppo_targets(
         log_prob = torch.zeros(valid.shape, device=valid.device)
         log_prob[valid] = actor.get_dist(rows).log_prob(rows["action"])
         trajectories["action_log_prob"] = log_prob
-    for key in ((), ("next",)):
-        source = rows if not key else rows.get(key[0])
+    for source, key in ((rows, "state_value"), (rows["next"], ("next", "state_value"))):
         value = torch.zeros(*valid.shape, 1, device=valid.device)
         value[valid] = critic(source.select("observation"))["state_value"]
-        trajectories.set((*key, "state_value"), value)
+        trajectories.set(key, value)
     return advantage(trajectories)
 
 

@@ -45,6 +45,7 @@ from agrl.rl.checkpoint import (
 )
 from agrl.rl.evaluation import instruction_latency_ms, run_episodes, summarise
 from agrl.rl.models import make_actor, make_critic
+from agrl.rl.reuse import PolicyReuseTransform, relabelled_ppo_targets
 
 log = logging.getLogger("agrl.train")
 
@@ -161,9 +162,7 @@ class Trainer:
         self.baseline_actor = actor.eval().requires_grad_(False)
         self.baseline_path = path
 
-    def _make_reuse_transform(self):
-        from agrl.rl.reuse import PolicyReuseTransform
-
+    def _make_reuse_transform(self) -> PolicyReuseTransform:
         method = self.cfg.method
         return PolicyReuseTransform(
             baseline_actor=self.baseline_actor,
@@ -180,8 +179,6 @@ class Trainer:
 
     def _ppo_targets(self, trajectories: TensorDictBase, valid: torch.Tensor) -> TensorDictBase:
         """What PPO needs for relabelled trajectories: a behaviour log-prob and GAE (see docs/policy_reuse.md)."""
-        from agrl.rl.reuse import relabelled_ppo_targets
-
         actor = self.actor if self.cfg.method.behaviour_log_prob == "current" else None
         return relabelled_ppo_targets(trajectories, valid, critic=self.critic, advantage=self.replay_advantage,
                                       actor=actor)
