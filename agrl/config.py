@@ -167,6 +167,9 @@ class SimulationConfig:
         _range_pair("simulation.initial_state.z_range", start.z_range, space["z_min"], space["z_max"], "m")
         _range_pair("simulation.initial_state.speed_range", start.speed_range, self.min_speed, self.max_speed,
                     "m/s")
+        _require(start.min_horizontal_distance > self.distance_tolerance,
+                 "simulation.initial_state.min_horizontal_distance", start.min_horizontal_distance,
+                 f"> distance_tolerance={self.distance_tolerance} m (no episode may start solved, equation 2)")
 
 
 # ---------------------------------------------------------------------------- agent, PPO, method

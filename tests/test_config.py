@@ -90,6 +90,7 @@ def test_wrong_type_names_the_value():
         (("task=irregular", "task.change_probability=2"), "task.change_probability"),
         (("method=pretrained", "method.start_from_baseline=true"), "method.start_from_baseline"),
         (("method.start_from_baseline=true",), "method.start_from_baseline"),
+        (("simulation.initial_state.min_horizontal_distance=900",), "simulation.initial_state.min_horizontal_distance"),
     ],
 )
 def test_config_errors_are_one_line_and_name_the_key(overrides, named):

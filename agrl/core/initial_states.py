@@ -28,13 +28,18 @@ class InitialStateDistribution:
 
 
 def scale_distribution(
-    distribution: InitialStateDistribution, scale: float, destination_start: tuple[float, float, float]
+    distribution: InitialStateDistribution,
+    scale: float,
+    destination_start: tuple[float, float, float],
+    success_distance: float,
 ) -> InitialStateDistribution:
     """Shrink the start box towards the destination's start by ``scale`` in (0, 1] (a reverse curriculum).
 
-    Horizontal ranges and the exclusion disc shrink about the destination; the
-    altitude range keeps its lower bound and shrinks its height. ``scale=1``
-    returns the distribution unchanged.
+    Horizontal ranges shrink about the destination; the altitude range keeps its
+    lower bound and shrinks its height. The exclusion disc shrinks too, but never
+    below ``success_distance`` (d_e of equation 2, m): a start inside it could
+    satisfy equation 2 before the first decision. ``scale=1`` returns the
+    distribution unchanged.
     """
     if not 0 < scale <= 1:
         raise ValueError(f"scale={scale} is not allowed: (0, 1]")
@@ -51,7 +56,7 @@ def scale_distribution(
         x_range=shrink(distribution.x_range, x_dest),
         y_range=shrink(distribution.y_range, y_dest),
         z_range=(z_low, z_low + scale * (z_high - z_low)),
-        min_horizontal_distance=scale * distribution.min_horizontal_distance,
+        min_horizontal_distance=max(scale * distribution.min_horizontal_distance, success_distance),
     )
 
 
@@ -69,13 +74,14 @@ def sample_initial_aircraft(
 ) -> torch.Tensor:
     """Draw ``count`` aircraft states ``(count, 7)``; theta = psi = phi = 0 (Table 1).
 
-    ``destination_start`` is ``(count, 4)``: starts closer than
-    ``min_horizontal_distance`` to it are redrawn (vectorised rejection sampling).
+    ``destination_start`` is ``(count, 4)``: starts within
+    ``min_horizontal_distance`` of it (boundary included, as equation 2 includes
+    its own) are redrawn (vectorised rejection sampling).
     """
     x = _uniform(*distribution.x_range, count, generator, device)
     y = _uniform(*distribution.y_range, count, generator, device)
     for _ in range(max_redraws):
-        too_close = torch.hypot(x - destination_start[:, 0], y - destination_start[:, 1]) < (
+        too_close = torch.hypot(x - destination_start[:, 0], y - destination_start[:, 1]) <= (
             distribution.min_horizontal_distance
         )
         if not bool(too_close.any()):

@@ -186,7 +186,9 @@ class Trainer:
     def _apply_curriculum(self) -> None:
         scale = min(1.0, self.counters.curriculum_scale)
         start = tuple(self.params.destination.start[:3])
-        self.env.set_initial_state_distribution(scale_distribution(self.params.initial_state, scale, start))
+        distribution = scale_distribution(self.params.initial_state, scale, start,
+                                          success_distance=self.params.simulation.tolerance.distance)
+        self.env.set_initial_state_distribution(distribution)
 
     def _advance_curriculum(self, metrics: dict[str, float]) -> None:
         scale = self.counters.curriculum_scale
