@@ -10,6 +10,7 @@ the plain records that :mod:`agrl.envs` needs.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -31,6 +32,19 @@ class ConfigError(ValueError):
 def _require(condition: bool, key: str, value: Any, allowed: str) -> None:
     if not condition:
         raise ConfigError(f"{key}={value!r} is not allowed: {allowed}")
+
+
+def _require_device(key: str, device: str) -> None:
+    """``cpu``, ``cuda`` or ``cuda:N``, and only a CUDA device this machine has."""
+    _require(device == "cpu" or re.fullmatch(r"cuda(:\d+)?", device) is not None, key, device,
+             "cpu, cuda or cuda:N")
+    if device.startswith("cuda"):
+        import torch
+
+        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        index = int(device.partition(":")[2] or 0)
+        available = ", ".join(["cpu"] + [f"cuda:{n}" for n in range(count)])
+        _require(index < count, key, device, f"this machine has {available} (torch {torch.__version__})")
 
 
 def _range_pair(key: str, pair: list[float], low: float, high: float, unit: str) -> None:
@@ -298,8 +312,7 @@ class TrainConfig:
     target_success: float = 0.995  # stop once periodic evaluation reaches this success rate (0 = never)
 
     def __post_init__(self) -> None:
-        _require(self.device == "cpu" or self.device.startswith("cuda"), "device", self.device,
-                 "cpu, cuda or cuda:N")
+        _require_device("device", self.device)
         _require(self.checkpoint_interval >= 1, "checkpoint_interval", self.checkpoint_interval, ">= 1")
         _require(0 <= self.target_success <= 1, "target_success", self.target_success, "[0, 1]")
 
@@ -321,8 +334,7 @@ class EvaluateConfig:
     def __post_init__(self) -> None:
         _require(self.episodes >= 1, "episodes", self.episodes, ">= 1")
         _require(self.trajectories >= 0, "trajectories", self.trajectories, ">= 0")
-        _require(self.device == "cpu" or self.device.startswith("cuda"), "device", self.device,
-                 "cpu, cuda or cuda:N")
+        _require_device("device", self.device)
 
 
 def _default_if_null(value: Any, default: Any) -> Any:

@@ -105,3 +105,21 @@ def test_task_label_names_the_motion_parameters():
     assert task_label(TaskConfig(name="uniform", speed=50.0)) == "uniform 50 m/s"
     assert task_label(TaskConfig(name="curved", speed=20.0, radius=500.0)) == "curved 20 m/s, radius 500 m"
     assert task_label(TaskConfig(name="fixed")) == "fixed"
+
+
+def test_unavailable_cuda_device_is_one_line_naming_what_is_available():
+    import torch
+
+    count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+    missing = f"cuda:{count}"  # one past the last device this machine has (cuda:0 on a CPU-only build)
+    available = ", ".join(["cpu"] + [f"cuda:{index}" for index in range(count)])
+    with pytest.raises(ConfigError) as info:
+        load(f"device={missing}")
+    expected = f"device={missing!r} is not allowed: this machine has {available} (torch {torch.__version__})"
+    assert str(info.value) == expected
+
+
+@pytest.mark.parametrize("device", ["gpu", "cuda:x", "cuda0"])
+def test_malformed_device_is_refused(device):
+    with pytest.raises(ConfigError, match=rf"device='{device}' is not allowed: cpu, cuda or cuda:N"):
+        load(f"device={device}")

@@ -106,6 +106,13 @@ class GuidanceEnv(EnvBase):
     def _set_seed(self, seed: int | None) -> None:
         self._generator.manual_seed(int(seed) if seed is not None else 0)
 
+    def generator_state(self) -> torch.Tensor:
+        """The state of the env's own random stream (initial states, irregular motion), for exact resume."""
+        return self._generator.get_state()
+
+    def set_generator_state(self, state: torch.Tensor) -> None:
+        self._generator.set_state(state)
+
     # ------------------------------------------------------------------ helpers
     def observe(self, state: TensorDictBase) -> torch.Tensor:
         """The policy input from the raw fields (one function for env and reuse step)."""

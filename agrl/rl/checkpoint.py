@@ -1,24 +1,43 @@
-"""Checkpoints: atomic writes, clear errors on load.
+"""Checkpoints: atomic writes, safe loads, clear errors.
 
 A checkpoint is one ``torch.save`` file holding everything needed to continue a
 run exactly (networks, optimiser, counters, RNG states, the rows the collector
 was carrying), plus the resolved config and package versions for provenance.
 The observation is normalised by a fixed function (:mod:`agrl.core.observation`),
 so there are no running normalisation statistics to store.
+
+Checkpoints and baselines are shared between people, so loading one must never
+run code: files are read with ``torch.load(weights_only=True)``, whose unpickler
+builds only tensors and plain containers. Format 2 (written since agrl 0.1.0's
+safe-loading change) holds nothing else. Format 1 files also held a TensorDict
+(the collector's carried rows) and NumPy's RNG state; they still load, through
+an allow-list of exactly those classes (:data:`FORMAT_1_GLOBALS`), never through
+a full unpickler.
 """
 
 from __future__ import annotations
 
 import io
 import os
+import pickle
+import re
 import tempfile
 from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
+from tensordict import TensorDict
+from tensordict._reductions import _make_td
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: The only non-plain objects a format-1 checkpoint holds (checked with
+#: ``torch.serialization.get_unsafe_globals_in_checkpoint``): the TensorDict of carried
+#: rows and NumPy's RNG state. Each of these only rebuilds data; none can run a command.
+FORMAT_1_GLOBALS = [
+    TensorDict, _make_td, np.ndarray, np.dtype, np.dtypes.UInt32DType, np._core.multiarray._reconstruct,
+]
 PACKAGES = ("agrl", "torch", "torchrl", "tensordict", "hydra-core", "gymnasium")
 
 
@@ -65,15 +84,26 @@ def load_checkpoint(path: str | Path, required: tuple[str, ...] = ("actor",)) ->
     if not path.is_file():
         raise CheckpointError(f"{path}: no such checkpoint file")
     try:
-        payload = torch.load(path, map_location="cpu", weights_only=False)
+        with torch.serialization.safe_globals(FORMAT_1_GLOBALS):
+            payload = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as error:
+        # The weights-only unpickler met an object outside the allow-list and refused it, unrun.
+        refused = re.search(r"GLOBAL ([\w.]+)|but got <\w+ '([\w.]+)'>", str(error))
+        if refused is None:  # plain garbage rather than a refused object
+            raise CheckpointError(f"{path}: not a readable checkpoint (corrupt or truncated?)") from None
+        raise CheckpointError(
+            f"{path}: refused to load: it holds a pickled {refused.group(1) or refused.group(2)}, and agrl "
+            "loads only tensors and plain data (a file from an untrusted source, or not an agrl checkpoint)"
+        ) from None
     except Exception as error:  # torch raises many types for truncated or foreign files
         reason = str(error).splitlines()[0] if str(error) else type(error).__name__
         raise CheckpointError(f"{path}: not a readable checkpoint (corrupt or truncated?): {reason}") from None
     if not isinstance(payload, dict) or "format_version" not in payload:
         raise CheckpointError(f"{path}: not an agrl checkpoint (no format_version)")
-    if payload["format_version"] != FORMAT_VERSION:
+    if payload["format_version"] not in (1, FORMAT_VERSION):
         raise CheckpointError(
-            f"{path}: checkpoint format {payload['format_version']} is not supported (expected {FORMAT_VERSION})"
+            f"{path}: checkpoint format {payload['format_version']} is not supported "
+            f"(this agrl reads formats 1 and {FORMAT_VERSION})"
         )
     missing = [key for key in required if key not in payload]
     if missing:

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 import tqdm
 from omegaconf import OmegaConf
-from tensordict import TensorDictBase
+from tensordict import TensorDict, TensorDictBase
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
@@ -75,6 +75,18 @@ def flatten_config(config: dict[str, Any], prefix: str = "") -> dict[str, Any]:
         else:
             flat[name] = str(value)
     return flat
+
+
+def numpy_rng_state() -> tuple:
+    """NumPy's global RNG state with its key array as a tensor (loadable with ``weights_only=True``)."""
+    name, keys, position, has_gauss, cached_gaussian = np.random.get_state()
+    return name, torch.from_numpy(keys.copy()), int(position), int(has_gauss), float(cached_gaussian)
+
+
+def set_numpy_rng_state(state: tuple) -> None:
+    name, keys, position, has_gauss, cached_gaussian = state
+    keys = keys.numpy() if isinstance(keys, torch.Tensor) else keys  # format 1 stored the NumPy array
+    np.random.set_state((name, keys, position, has_gauss, cached_gaussian))
 
 
 class Trainer:
@@ -207,15 +219,16 @@ class Trainer:
             "optimizer": copy.deepcopy(self.optimizer.state_dict()),
             "counters": vars(self.counters).copy(),
             # The rows the collector carries into its next step (torchrl 0.14's Collector
-            # keeps them in ``_carrier``); restored through the env on resume.
-            "carrier": self.collector._carrier.exclude("collector").clone().cpu(),
+            # keeps them in ``_carrier``, its only private attribute we read); restored through
+            # the env on resume. Stored as plain tensors so the file loads with weights_only=True.
+            "carrier": self.collector._carrier.exclude("collector").clone().cpu().to_dict(),
             "reuse": self.reuse.state_dict() if self.reuse is not None else None,
             "rng": {
                 "torch": torch.get_rng_state(),
                 "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None,
-                "env": self.env._generator.get_state(),
+                "env": self.env.generator_state(),
                 "python": random.getstate(),
-                "numpy": np.random.get_state(),
+                "numpy": numpy_rng_state(),
             },
             "config": OmegaConf.to_container(OmegaConf.structured(self.cfg), resolve=True),
             "config_yaml": OmegaConf.to_yaml(OmegaConf.structured(self.cfg), resolve=True),
@@ -229,6 +242,8 @@ class Trainer:
         self.optimizer.load_state_dict(payload["optimizer"])
         self.counters = Counters(**payload["counters"])
         carrier = payload["carrier"]
+        if isinstance(carrier, dict):  # format 2: plain tensors; format 1 stored the TensorDict itself
+            carrier = TensorDict.from_dict(carrier, batch_size=carrier["step_count"].shape[:1])
         if tuple(carrier.batch_size) != tuple(self.env.batch_size):
             raise CheckpointError(
                 f"{path}: checkpoint has {carrier.batch_size[0]} environments, this run has {self.env.batch_size[0]}"
@@ -241,9 +256,9 @@ class Trainer:
         torch.set_rng_state(rng["torch"])
         if rng.get("cuda") is not None and torch.cuda.is_available():
             torch.cuda.set_rng_state_all(rng["cuda"])
-        self.env._generator.set_state(rng["env"])
+        self.env.set_generator_state(rng["env"])
         random.setstate(rng["python"])
-        np.random.set_state(rng["numpy"])
+        set_numpy_rng_state(rng["numpy"])
 
     def save(self, name: str, state: dict[str, Any] | None = None) -> Path:
         return save_checkpoint(state or self._state(), self.checkpoint_dir / f"{name}.pt")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import random
 import threading
+from pathlib import Path
 
 import pytest
 import torch
@@ -158,3 +159,74 @@ def test_pretrained_and_reuse_from_baseline_copy_its_weights(small_trainer, comp
         same = [torch.equal(value, saved[network][name]) for name, value in state.items()]
         assert all(same) if copied else not any(same), network
     trainer.collector.shutdown()
+
+
+# ---------------------------------------------------------------------------- safe loading
+class _CreatesAFileWhenUnpickled:
+    """A pickle payload of the kind a crafted checkpoint carries: unpickling it calls ``Path.touch``."""
+
+    def __init__(self, marker: Path):
+        self.marker = marker
+
+    def __reduce__(self):
+        return (Path.touch, (self.marker,))
+
+
+def test_written_checkpoints_hold_only_tensors_and_plain_data(small_trainer):
+    from torch.serialization import get_unsafe_globals_in_checkpoint
+
+    path = small_trainer.checkpoint_dir / "latest.pt"
+    assert get_unsafe_globals_in_checkpoint(path) == []
+    assert load_checkpoint(path)["format_version"] == FORMAT_VERSION == 2
+
+
+def test_shipped_baseline_holds_only_tensors_and_plain_data():
+    from torch.serialization import get_unsafe_globals_in_checkpoint
+
+    assert get_unsafe_globals_in_checkpoint(resolve_checkpoint_path("baseline")) == []
+
+
+def test_crafted_checkpoint_is_refused_without_running_its_code(tmp_path, run_cli):
+    marker = tmp_path / "code_ran"
+    path = tmp_path / "crafted.pt"
+    torch.save({"format_version": FORMAT_VERSION, "actor": _CreatesAFileWhenUnpickled(marker)}, path)
+    for load in (load_checkpoint, load_agent):
+        with pytest.raises(CheckpointError) as raised:
+            load(str(path))
+        message = str(raised.value)
+        # Path.touch pickles as getattr(Path, "touch"): the first object outside the allow-list is named.
+        assert message == (f"{path}: refused to load: it holds a pickled getattr, and agrl loads only tensors "
+                           "and plain data (a file from an untrusted source, or not an agrl checkpoint)")
+    # The same file given to the CLI as a baseline: exit 2, one line, and the payload never ran.
+    result = run_cli("train", "method=pretrained", f"method.baseline={path}", f"hydra.run.dir={tmp_path / 'h'}")
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [f"agrl.train: error: {message}"]
+    assert not marker.exists()
+
+
+def test_format_1_checkpoint_still_resumes_identically(small_trainer, tmp_path):
+    """A file as agrl wrote it before format 2 (the carried rows as a TensorDict, NumPy's key array as an
+    ndarray) loads through the allow-list and restores the same training state as its format-2 twin."""
+    import numpy as np
+    from tensordict import TensorDict
+
+    current = load_checkpoint(small_trainer.checkpoint_dir / "latest.pt")
+    legacy = dict(current)
+    legacy["format_version"] = 1
+    carrier = current["carrier"]
+    legacy["carrier"] = TensorDict.from_dict(carrier, batch_size=carrier["step_count"].shape[:1])
+    name, keys, position, has_gauss, cached = current["rng"]["numpy"]
+    legacy["rng"] = {**current["rng"], "numpy": (name, keys.numpy(), position, has_gauss, cached)}
+    path = tmp_path / "format1.pt"
+    torch.save({key: value for key, value in legacy.items()}, path)
+
+    batches = []
+    for payload in (load_checkpoint(path), current):
+        payload["_path"] = str(path)
+        trainer = Trainer(small_trainer.cfg, tmp_path / f"resumed_{len(batches)}", resume_payload=payload)
+        batches.append(next(iter(trainer.collector)))
+        trainer.collector.shutdown()
+        batches.append(torch.from_numpy(np.random.get_state()[1].copy()))
+    assert torch.equal(batches[0]["observation"], batches[2]["observation"])
+    assert torch.equal(batches[0]["action"], batches[2]["action"])
+    assert torch.equal(batches[1], batches[3])
