@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 ARGS ?=
 
-.PHONY: install train test test-slow bench lint clean experiments-table3 experiments-moving report
+.PHONY: install train test test-slow bench lint clean experiments-table3 experiments-moving report wheel-check
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -22,6 +22,10 @@ train: install
 # The fast default suite (slow-marked tests excluded by pyproject's addopts).
 test: install
 	$(PY) -m pytest
+
+# Build the wheel, install it into a fresh virtualenv and train / evaluate from outside the checkout.
+wheel-check:
+	PYTHON=$(PYTHON) bash .ci/wheel-check
 
 test-slow: install
 	$(PY) -m pytest -m slow

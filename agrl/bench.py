@@ -43,9 +43,9 @@ from collections.abc import Callable, Sequence
 import torch
 
 from agrl.core.initial_states import InitialStateDistribution, sample_initial_aircraft
+from agrl.core.parameters import GuidanceParameters
 from agrl.core.simulation import DecisionSimulator
 from agrl.envs.gym import guidance_parameters
-from agrl.envs.parameters import GuidanceParameters
 from agrl.reference import reference_decision
 
 FULL_BATCH_SIZES = (1024, 4096, 16384)

@@ -19,10 +19,10 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 
 from agrl.core.aircraft import AircraftLimits
 from agrl.core.initial_states import InitialStateDistribution
+from agrl.core.parameters import DestinationMotion, GuidanceParameters, ManeuverLoadFactors, MotionKind
 from agrl.core.reward import RewardParameters
 from agrl.core.simulation import SimulationParameters
 from agrl.core.termination import Airspace, SuccessTolerance
-from agrl.envs.parameters import DestinationMotion, GuidanceParameters, ManeuverLoadFactors, MotionKind
 
 
 class ConfigError(ValueError):
@@ -371,6 +371,15 @@ def load_config(cfg: DictConfig) -> TrainConfig:
             if isinstance(cause, ConfigError):
                 raise cause from None
         raise ConfigError(str(error).splitlines()[0]) from None
+
+
+def compose_config(*overrides: str, config_name: str = "config") -> DictConfig:
+    """Compose ``conf/`` (installed as ``agrl.conf``) with Hydra's compose API, as ``python -m agrl.train``
+    would with these command-line overrides; validate it with :func:`load_config`."""
+    from hydra import compose, initialize_config_module
+
+    with initialize_config_module(config_module="agrl.conf", version_base="1.3"):
+        return compose(config_name=config_name, overrides=list(overrides))
 
 
 def to_guidance_parameters(task: TaskConfig, reward: RewardConfig, simulation: SimulationConfig,

@@ -78,7 +78,7 @@ def evaluate(cfg) -> dict[str, Any]:
     return summary
 
 
-@hydra.main(version_base="1.3", config_path="../conf", config_name="evaluate")
+@hydra.main(version_base="1.3", config_path="pkg://agrl.conf", config_name="evaluate")
 def main(cfg: DictConfig) -> None:
     try:
         config = load_config(cfg)

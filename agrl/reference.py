@@ -22,9 +22,9 @@ import math
 from typing import NamedTuple
 
 from agrl.core.aircraft import MANEUVER_NAMES
+from agrl.core.parameters import ManeuverLoadFactors
 from agrl.core.simulation import SimulationParameters
 from agrl.core.termination import Outcome
-from agrl.envs.parameters import ManeuverLoadFactors
 
 Aircraft = tuple[float, float, float, float, float, float, float]  # x, y, z, v, theta, psi, phi
 Destination = tuple[float, float, float, float]  # x, y, z, psi

@@ -61,7 +61,7 @@ def run(cfg: DictConfig) -> dict:
     return summary
 
 
-@hydra.main(version_base="1.3", config_path="../conf", config_name="config")
+@hydra.main(version_base="1.3", config_path="pkg://agrl.conf", config_name="config")
 def main(cfg: DictConfig) -> None:
     try:
         summary = run(cfg)

@@ -14,9 +14,9 @@ import torch
 
 from agrl.core.aircraft import maneuver_table
 from agrl.core.destinations import curved_turn_rate
+from agrl.core.parameters import ManeuverLoadFactors
 from agrl.core.simulation import DecisionSimulator, SimulationParameters
 from agrl.core.termination import Outcome
-from agrl.envs.parameters import ManeuverLoadFactors
 from agrl.reference import maneuver_rows, reference_decision, wrap_angle
 
 PARAMS = SimulationParameters()

@@ -1,7 +1,7 @@
 """TorchRL and gymnasium environments built on :mod:`agrl.core`."""
 
+from agrl.core.parameters import DestinationMotion, GuidanceParameters, ManeuverLoadFactors, MotionKind
 from agrl.envs.guidance import NUM_ACTIONS, GuidanceEnv
-from agrl.envs.parameters import DestinationMotion, GuidanceParameters, ManeuverLoadFactors, MotionKind
 
 __all__ = [
     "NUM_ACTIONS",

@@ -19,10 +19,10 @@ from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.destinations import redraw_irregular_motion
 from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
+from agrl.core.parameters import GuidanceParameters, MotionKind
 from agrl.core.reward import potential, step_reward
 from agrl.core.simulation import DecisionSimulator
 from agrl.core.termination import Outcome
-from agrl.envs.parameters import GuidanceParameters, MotionKind
 
 NUM_ACTIONS = len(MANEUVER_NAMES)
 

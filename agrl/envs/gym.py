@@ -34,9 +34,9 @@ from gymnasium import spaces
 from agrl.config import RewardConfig, SimulationConfig, TaskConfig, to_guidance_parameters
 from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.observation import OBSERVATION_FEATURES, OBSERVATION_SIZE
+from agrl.core.parameters import GuidanceParameters, MotionKind
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import NUM_ACTIONS, GuidanceEnv
-from agrl.envs.parameters import GuidanceParameters, MotionKind
 
 ENV_ID = "agrl/Guidance-v0"
 

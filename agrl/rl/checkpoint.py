@@ -31,6 +31,8 @@ import torch
 from tensordict import TensorDict
 from tensordict._reductions import _make_td
 
+from agrl.baselines import BASELINE_FILE
+
 FORMAT_VERSION = 2
 #: The only non-plain objects a format-1 checkpoint holds (checked with
 #: ``torch.serialization.get_unsafe_globals_in_checkpoint``): the TensorDict of carried
@@ -127,9 +129,12 @@ def load_module_state(module: torch.nn.Module, state: dict[str, torch.Tensor], p
 def resolve_checkpoint_path(reference: str | Path) -> Path:
     """``baseline`` -> the shipped baseline; a run directory -> its ``checkpoints/latest.pt``; else the path."""
     if str(reference) == "baseline":
-        from agrl.baselines import baseline_checkpoint_path
-
-        return baseline_checkpoint_path()
+        if not BASELINE_FILE.is_file():
+            raise CheckpointError(
+                f"{BASELINE_FILE}: the shipped baseline is missing; train one with `python -m agrl.train` "
+                "and pass its checkpoint path instead of 'baseline'"
+            )
+        return BASELINE_FILE
     path = Path(reference)
     if path.is_dir():
         candidate = path / "checkpoints" / "latest.pt"

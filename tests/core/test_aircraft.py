@@ -21,9 +21,9 @@ from agrl.core.aircraft import (
     point_mass_derivatives,
     wrap_angle,
 )
+from agrl.core.parameters import ManeuverLoadFactors
 from agrl.core.simulation import DecisionSimulator, SimulationParameters
 from agrl.core.termination import Airspace, Outcome
-from agrl.envs.parameters import ManeuverLoadFactors
 
 F64 = torch.float64
 ACTION = {name: index for index, name in enumerate(MANEUVER_NAMES)}

@@ -7,6 +7,7 @@ import math
 import pytest
 import torch
 
+from agrl.core.parameters import DestinationMotion
 from agrl.core.reward import (
     RewardParameters,
     continuous_action_potential,
@@ -18,7 +19,6 @@ from agrl.core.reward import (
 )
 from agrl.core.termination import Outcome
 from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
-from agrl.envs.parameters import DestinationMotion
 
 CUSTOM = RewardParameters(
     success=7.0,

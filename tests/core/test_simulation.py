@@ -8,9 +8,9 @@ import pytest
 import torch
 
 from agrl.core.aircraft import AircraftLimits
+from agrl.core.parameters import ManeuverLoadFactors
 from agrl.core.simulation import DecisionSimulator, SimulationParameters
 from agrl.core.termination import Outcome, SuccessTolerance
-from agrl.envs.parameters import ManeuverLoadFactors
 
 CONTROLS = ManeuverLoadFactors().controls()
 

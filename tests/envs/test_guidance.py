@@ -11,10 +11,10 @@ from tensordict import TensorDict
 from torchrl.envs.utils import check_env_specs
 
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
+from agrl.core.parameters import DestinationMotion
 from agrl.core.termination import Outcome
 from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
 from agrl.envs.guidance import STATE_KEYS
-from agrl.envs.parameters import DestinationMotion
 
 
 def make_params(kind: MotionKind = MotionKind.FIXED, **overrides) -> GuidanceParameters:

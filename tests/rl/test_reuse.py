@@ -30,10 +30,10 @@ from torchrl.objectives.value import GAE
 
 from agrl.core.initial_states import InitialStateDistribution
 from agrl.core.observation import policy_observation
+from agrl.core.parameters import DestinationMotion
 from agrl.core.reward import potential, step_reward
 from agrl.core.termination import Outcome
 from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
-from agrl.envs.parameters import DestinationMotion
 from agrl.rl.checkpoint import save_checkpoint
 from agrl.rl.models import make_actor, make_critic
 from agrl.rl.reuse import PPO_KEYS, TRAJECTORY_KEY, PolicyReuseTransform, candidate_steps, relabelled_ppo_targets
