@@ -265,11 +265,14 @@ class MethodConfig:
 class EvaluationConfig:
     episodes: int = 1000
     interval: int = 10  # iterations between periodic evaluations during training (0 = never)
+    interval_seconds: float = 0.0  # s of training between periodic evaluations; > 0 replaces `interval`
     periodic_episodes: int = 256  # episodes of each periodic evaluation
 
     def __post_init__(self) -> None:
         _require(self.episodes >= 1, "eval.episodes", self.episodes, ">= 1")
         _require(self.interval >= 0, "eval.interval", self.interval, ">= 0")
+        _require(self.interval_seconds >= 0, "eval.interval_seconds", self.interval_seconds,
+                 ">= 0 s (0 = evaluate every eval.interval iterations)")
         _require(self.periodic_episodes >= 1, "eval.periodic_episodes", self.periodic_episodes, ">= 1")
 
 

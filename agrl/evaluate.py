@@ -55,8 +55,7 @@ def load_agent(reference: str, device: torch.device | str = "cpu"):
 def evaluate(cfg) -> dict[str, Any]:
     from agrl.envs.guidance import GuidanceEnv
     from agrl.plots import plot_trajectories
-    from agrl.rl.evaluation import instruction_latency_ms, run_episodes, summarise
-    from agrl.rl.trainer import write_evaluation
+    from agrl.rl.evaluation import instruction_latency_ms, run_episodes, summarise, write_evaluation
 
     device = torch.device(cfg.device)
     actor, saved, path = load_agent(cfg.checkpoint, device)

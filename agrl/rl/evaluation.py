@@ -9,9 +9,13 @@ aircraft starts in steady flight), i.e. what a controller would have to say;
 
 from __future__ import annotations
 
+import csv
+import json
 import math
 import time
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import torch
 from tensordict import TensorDictBase
@@ -139,3 +143,19 @@ def instruction_latency_ms(env: GuidanceEnv, actor, queries: int = 200) -> float
             timings.append(time.perf_counter() - start)
     timings = sorted(timings[10:])
     return 1000.0 * timings[len(timings) // 2]
+
+
+def write_evaluation(directory: Path, summary: dict[str, Any], records) -> None:
+    """``eval.json`` (summary) and ``episodes.csv`` (one row per episode)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / "eval.json").write_text(json.dumps(summary, indent=2) + "\n")
+    with (directory / "episodes.csv").open("w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(["episode", "x0_m", "y0_m", "z0_m", "outcome", "decisions", "instructions", "return",
+                         "final_distance_m"])
+        for index in range(records.outcome.numel()):
+            x0, y0, z0 = records.initial_aircraft_state[index, :3].tolist()
+            writer.writerow([index, round(x0, 1), round(y0, 1), round(z0, 1),
+                             Outcome(int(records.outcome[index])).name.lower(), int(records.decisions[index]),
+                             int(records.instructions[index]), round(float(records.episode_return[index]), 4),
+                             round(float(records.final_distance[index]), 1)])

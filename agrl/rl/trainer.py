@@ -1,39 +1,32 @@
-"""PPO training loop: Collector -> GAE -> replay buffer (with the optional reuse transform) -> ClipPPOLoss.
+"""PPO training: Collector -> GAE -> replay buffer (with the optional reuse transform) -> ClipPPOLoss.
 
-Modelled on TorchRL's own PPO script (``sota-implementations/ppo``), plus what a
-long experiment needs: periodic evaluation, TensorBoard dashboards, atomic
-checkpoints with exact resume, a Ctrl-C that saves, and a guard on non-finite losses.
+Laid out like TorchRL's own PPO script (``sota-implementations/ppo``): setup in small
+named steps, then one loop. What a long experiment needs beyond it lives beside:
+the PPO update (:mod:`agrl.rl.ppo`), the curriculum (:mod:`agrl.rl.curriculum`),
+metrics and dashboards (:mod:`agrl.rl.metrics`), exact-resume state
+(:mod:`agrl.rl.run_state`), checkpoint files (:mod:`agrl.rl.checkpoint`) and the
+paper's evaluation (:mod:`agrl.rl.evaluation`).
 """
 
 from __future__ import annotations
 
 import copy
-import csv
-import json
 import logging
-import math
-import random
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 import tqdm
 from omegaconf import OmegaConf
-from tensordict import TensorDict, TensorDictBase
+from tensordict import TensorDictBase
 from torchrl.collectors import Collector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
-from torchrl.objectives import ClipPPOLoss
-from torchrl.objectives.value import GAE
-from torchrl.record.loggers import TensorboardLogger
 
 from agrl.config import TrainConfig, task_label, to_guidance_parameters
-from agrl.core.initial_states import scale_distribution
-from agrl.core.termination import Outcome
 from agrl.envs.guidance import GuidanceEnv
 from agrl.plots import plot_trajectories
 from agrl.rl.checkpoint import (
@@ -43,15 +36,30 @@ from agrl.rl.checkpoint import (
     resolve_checkpoint_path,
     save_checkpoint,
 )
-from agrl.rl.evaluation import instruction_latency_ms, run_episodes, summarise
+from agrl.rl.curriculum import promoted_scale, start_distribution
+from agrl.rl.evaluation import instruction_latency_ms, run_episodes, summarise, write_evaluation
+from agrl.rl.metrics import MetricsLog, episode_statistics, progress_line
 from agrl.rl.models import make_actor, make_critic
+from agrl.rl.ppo import (
+    TrainingDiverged,
+    annealed_learning_rate,
+    clip_fraction_by_source,
+    make_advantage,
+    make_loss,
+    ppo_update,
+)
 from agrl.rl.reuse import PolicyReuseTransform, relabelled_ppo_targets
+from agrl.rl.run_state import (
+    carried_rows,
+    carried_rows_from_checkpoint,
+    restore_rng_states,
+    rng_states,
+    seed_everything,
+)
+
+__all__ = ["Counters", "Trainer", "TrainingDiverged"]
 
 log = logging.getLogger("agrl.train")
-
-
-class TrainingDiverged(RuntimeError):
-    """A loss became NaN or infinite; the last good checkpoint is kept."""
 
 
 @dataclass
@@ -61,32 +69,7 @@ class Counters:
     wall_time: float = 0.0  # seconds of training, summed over resumed sessions
     best_success: float = -1.0
     curriculum_scale: float = 1.0  # fraction of the start box used for training episodes
-
-
-def flatten_config(config: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Flatten nested dicts to ``a.b.c`` keys with scalar values (TensorBoard hparams take no nesting)."""
-    flat = {}
-    for key, value in config.items():
-        name = f"{prefix}{key}"
-        if isinstance(value, dict):
-            flat.update(flatten_config(value, f"{name}."))
-        elif isinstance(value, int | float | str | bool):
-            flat[name] = value
-        else:
-            flat[name] = str(value)
-    return flat
-
-
-def numpy_rng_state() -> tuple:
-    """NumPy's global RNG state with its key array as a tensor (loadable with ``weights_only=True``)."""
-    name, keys, position, has_gauss, cached_gaussian = np.random.get_state()
-    return name, torch.from_numpy(keys.copy()), int(position), int(has_gauss), float(cached_gaussian)
-
-
-def set_numpy_rng_state(state: tuple) -> None:
-    name, keys, position, has_gauss, cached_gaussian = state
-    keys = keys.numpy() if isinstance(keys, torch.Tensor) else keys  # format 1 stored the NumPy array
-    np.random.set_state((name, keys, position, has_gauss, cached_gaussian))
+    next_evaluation_time: float = 0.0  # s of training; the wall-clock evaluation schedule (eval.interval_seconds)
 
 
 class Trainer:
@@ -97,96 +80,72 @@ class Trainer:
         self.run_dir = Path(run_dir)
         self.checkpoint_dir = self.run_dir / "checkpoints"
         self.device = torch.device(cfg.device)
-        ppo = cfg.ppo
-        self.frames_per_batch = ppo.num_envs * ppo.steps_per_env
-        torch.manual_seed(cfg.seed)
-        random.seed(cfg.seed)
-        np.random.seed(cfg.seed)
+        self.frames_per_batch = cfg.ppo.num_envs * cfg.ppo.steps_per_env
+        seed_everything(cfg.seed)
 
         self.params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation)
-        self.env = GuidanceEnv(self.params, num_envs=ppo.num_envs, device=self.device, seed=cfg.seed)
-        self.eval_env = GuidanceEnv(
-            self.params, num_envs=cfg.eval.periodic_episodes, device=self.device, seed=self.eval_seed
-        )
+        self.env, self.eval_env = self._make_envs()
         self.actor = make_actor(cfg.agent.actor_hidden, cfg.agent.activation, self.device)
         self.critic = make_critic(cfg.agent.critic_hidden, cfg.agent.activation, self.device)
-        self.baseline_actor = None
-        if cfg.method.name in ("pretrained", "reuse"):
-            self._load_baseline(cfg.method.baseline)
-
-        self.advantage = GAE(
-            gamma=cfg.reward.gamma, lmbda=ppo.gae_lambda, value_network=self.critic, average_gae=False,
-            device=self.device,
-        )
-        # For re-played trajectories the critic's values are computed on their valid rows only (agrl.rl.reuse).
-        self.replay_advantage = GAE(gamma=cfg.reward.gamma, lmbda=ppo.gae_lambda, value_network=None,
-                                    average_gae=False, device=self.device)
-        self.loss = ClipPPOLoss(
-            self.actor, self.critic, clip_epsilon=ppo.clip_epsilon, entropy_coeff=ppo.entropy_coeff,
-            critic_coeff=ppo.critic_coeff, normalize_advantage=True, loss_critic_type="smooth_l1",
-        )
-        self.optimizer = torch.optim.Adam(self.loss.parameters(), lr=ppo.learning_rate, eps=1e-5)
+        self.baseline_actor = self._load_baseline(cfg.method.baseline) if cfg.method.name != "scratch" else None
+        self._make_ppo()
         self.reuse = self._make_reuse_transform() if cfg.method.name == "reuse" else None
-        self.buffer = TensorDictReplayBuffer(
-            storage=LazyTensorStorage(self._storage_size(), device=self.device),
-            sampler=SamplerWithoutReplacement(),
-            batch_size=ppo.minibatch_size,
-            transform=self.reuse,
-        )
-        self.counters = Counters()
-        if cfg.curriculum.enabled and cfg.method.use_curriculum:
-            self.counters.curriculum_scale = cfg.curriculum.initial_scale
+        self.buffer = self._make_buffer()
+        self.counters = self._initial_counters()
         if resume_payload is not None:
             self._restore(resume_payload)
-        self._apply_curriculum()
-        self.collector = Collector(
-            self.env, self.actor, frames_per_batch=self.frames_per_batch, total_frames=-1,
-            device=self.device, auto_register_policy_transforms=False,
-        )
+        self.env.set_initial_state_distribution(start_distribution(self.params, self.counters.curriculum_scale))
+        self.collector = Collector(self.env, self.actor, frames_per_batch=self.frames_per_batch, total_frames=-1,
+                                   device=self.device, auto_register_policy_transforms=False)
         if resume_payload is not None:
-            # Building the collector may run the policy once: restore the RNGs afterwards.
-            self._restore_rng(resume_payload["rng"])
-        self.logger = TensorboardLogger(exp_name="tensorboard", log_dir=str(self.run_dir))
+            restore_rng_states(self.env, resume_payload["rng"])  # building the collector may run the policy
+        self.metrics = MetricsLog(self.run_dir)
         self._snapshot: dict | None = None
-        self._metrics_file = self.run_dir / "metrics.csv"
 
-    # ------------------------------------------------------------------ setup helpers
+    # ------------------------------------------------------------------ setup steps
     @property
     def eval_seed(self) -> int:
         return self.cfg.seed + 1_000_003  # a fixed evaluation set, disjoint from the training stream
 
-    def _storage_size(self) -> int:
-        # Relabelled episodes may be longer than the rows they replace (bounded in agrl.rl.reuse).
-        return self.frames_per_batch * (3 if self.cfg.method.name == "reuse" else 1)
+    def _make_envs(self) -> tuple[GuidanceEnv, GuidanceEnv]:
+        train = GuidanceEnv(self.params, num_envs=self.cfg.ppo.num_envs, device=self.device, seed=self.cfg.seed)
+        periodic = GuidanceEnv(self.params, num_envs=self.cfg.eval.periodic_episodes, device=self.device,
+                               seed=self.eval_seed)
+        return train, periodic
 
-    def _load_baseline(self, reference: str) -> None:
+    def _load_baseline(self, reference: str):
+        """The frozen baseline actor B; pretrained (and reuse from B) also start Z's networks from it."""
         path = resolve_checkpoint_path(reference)
         payload = load_checkpoint(path, required=("actor", "critic"))
         if self.cfg.method.name == "pretrained" or self.cfg.method.start_from_baseline:
             load_module_state(self.actor, payload["actor"], path, "actor")
             load_module_state(self.critic, payload["critic"], path, "critic")
-        baseline_cfg = payload.get("config", {}).get("agent", {})
-        actor = make_actor(
-            baseline_cfg.get("actor_hidden", self.cfg.agent.actor_hidden),
-            baseline_cfg.get("activation", self.cfg.agent.activation), self.device,
-        )
+        baseline_agent = payload.get("config", {}).get("agent", {})
+        actor = make_actor(baseline_agent.get("actor_hidden", self.cfg.agent.actor_hidden),
+                           baseline_agent.get("activation", self.cfg.agent.activation), self.device)
         load_module_state(actor, payload["actor"], path, "baseline actor")
-        self.baseline_actor = actor.eval().requires_grad_(False)
         self.baseline_path = path
+        return actor.eval().requires_grad_(False)
+
+    def _make_ppo(self) -> None:
+        ppo, gamma = self.cfg.ppo, self.cfg.reward.gamma
+        self.advantage = make_advantage(gamma, ppo.gae_lambda, self.critic, self.device)
+        # For re-played trajectories the critic's values come with the data, on valid rows only (agrl.rl.reuse).
+        self.replay_advantage = make_advantage(gamma, ppo.gae_lambda, None, self.device)
+        self.loss = make_loss(self.actor, self.critic, ppo.clip_epsilon, ppo.entropy_coeff, ppo.critic_coeff)
+        self.optimizer = torch.optim.Adam(self.loss.parameters(), lr=ppo.learning_rate, eps=1e-5)
+
+    def _storage_size(self) -> int:
+        # Relabelled episodes may be longer than the rows they replace (bounded in agrl.rl.reuse).
+        return self.frames_per_batch * (3 if self.cfg.method.name == "reuse" else 1)
 
     def _make_reuse_transform(self) -> PolicyReuseTransform:
         method = self.cfg.method
         return PolicyReuseTransform(
-            baseline_actor=self.baseline_actor,
-            env=self.env,
-            initial_selection_factor=method.initial_selection_factor,
-            selection_decay=method.selection_decay,
-            candidate_stride=method.candidate_stride,
-            max_candidates=method.max_candidates,
-            keep=method.keep,
-            ppo_targets=self._ppo_targets,
-            max_rows=self._storage_size(),
-            seed=self.cfg.seed,
+            baseline_actor=self.baseline_actor, env=self.env,
+            initial_selection_factor=method.initial_selection_factor, selection_decay=method.selection_decay,
+            candidate_stride=method.candidate_stride, max_candidates=method.max_candidates, keep=method.keep,
+            ppo_targets=self._ppo_targets, max_rows=self._storage_size(), seed=self.cfg.seed,
         )
 
     def _ppo_targets(self, trajectories: TensorDictBase, valid: torch.Tensor) -> TensorDictBase:
@@ -195,43 +154,30 @@ class Trainer:
         return relabelled_ppo_targets(trajectories, valid, critic=self.critic, advantage=self.replay_advantage,
                                       actor=actor)
 
-    def _apply_curriculum(self) -> None:
-        scale = min(1.0, self.counters.curriculum_scale)
-        start = tuple(self.params.destination.start[:3])
-        distribution = scale_distribution(self.params.initial_state, scale, start,
-                                          success_distance=self.params.simulation.tolerance.distance)
-        self.env.set_initial_state_distribution(distribution)
+    def _make_buffer(self) -> TensorDictReplayBuffer:
+        return TensorDictReplayBuffer(storage=LazyTensorStorage(self._storage_size(), device=self.device),
+                                      sampler=SamplerWithoutReplacement(), batch_size=self.cfg.ppo.minibatch_size,
+                                      transform=self.reuse)
 
-    def _advance_curriculum(self, metrics: dict[str, float]) -> None:
-        scale = self.counters.curriculum_scale
-        if scale < 1.0 and metrics.get("train/success_rate", 0.0) >= self.cfg.curriculum.promotion_success:
-            self.counters.curriculum_scale = min(1.0, round(scale + self.cfg.curriculum.scale_step, 6))
-            self._apply_curriculum()
-            log.info("curriculum: training starts now use %.0f %% of the start box",
-                     100 * self.counters.curriculum_scale)
-        metrics["train/curriculum_scale"] = self.counters.curriculum_scale
+    def _initial_counters(self) -> Counters:
+        curriculum = self.cfg.curriculum
+        on = curriculum.enabled and self.cfg.method.use_curriculum
+        return Counters(curriculum_scale=curriculum.initial_scale if on else 1.0)
 
     # ------------------------------------------------------------------ checkpoints
     def _state(self) -> dict[str, Any]:
+        """Everything exact resume needs, as tensors and plain data (the file loads with weights_only=True)."""
+        config = OmegaConf.structured(self.cfg)
         return {
             "actor": copy.deepcopy(self.actor.state_dict()),
             "critic": copy.deepcopy(self.critic.state_dict()),
             "optimizer": copy.deepcopy(self.optimizer.state_dict()),
             "counters": vars(self.counters).copy(),
-            # The rows the collector carries into its next step (torchrl 0.14's Collector
-            # keeps them in ``_carrier``, its only private attribute we read); restored through
-            # the env on resume. Stored as plain tensors so the file loads with weights_only=True.
-            "carrier": self.collector._carrier.exclude("collector").clone().cpu().to_dict(),
+            "carrier": carried_rows(self.collector),
             "reuse": self.reuse.state_dict() if self.reuse is not None else None,
-            "rng": {
-                "torch": torch.get_rng_state(),
-                "cuda": torch.cuda.get_rng_state_all() if torch.cuda.is_available() else None,
-                "env": self.env.generator_state(),
-                "python": random.getstate(),
-                "numpy": numpy_rng_state(),
-            },
-            "config": OmegaConf.to_container(OmegaConf.structured(self.cfg), resolve=True),
-            "config_yaml": OmegaConf.to_yaml(OmegaConf.structured(self.cfg), resolve=True),
+            "rng": rng_states(self.env),
+            "config": OmegaConf.to_container(config, resolve=True),
+            "config_yaml": OmegaConf.to_yaml(config, resolve=True),
             "run_dir": str(self.run_dir),
         }
 
@@ -241,9 +187,7 @@ class Trainer:
         load_module_state(self.critic, payload["critic"], path, "critic")
         self.optimizer.load_state_dict(payload["optimizer"])
         self.counters = Counters(**payload["counters"])
-        carrier = payload["carrier"]
-        if isinstance(carrier, dict):  # format 2: plain tensors; format 1 stored the TensorDict itself
-            carrier = TensorDict.from_dict(carrier, batch_size=carrier["step_count"].shape[:1])
+        carrier = carried_rows_from_checkpoint(payload["carrier"])
         if tuple(carrier.batch_size) != tuple(self.env.batch_size):
             raise CheckpointError(
                 f"{path}: checkpoint has {carrier.batch_size[0]} environments, this run has {self.env.batch_size[0]}"
@@ -252,79 +196,46 @@ class Trainer:
         if self.reuse is not None and payload.get("reuse") is not None:
             self.reuse.load_state_dict(payload["reuse"])
 
-    def _restore_rng(self, rng: dict[str, Any]) -> None:
-        torch.set_rng_state(rng["torch"])
-        if rng.get("cuda") is not None and torch.cuda.is_available():
-            torch.cuda.set_rng_state_all(rng["cuda"])
-        self.env.set_generator_state(rng["env"])
-        random.setstate(rng["python"])
-        set_numpy_rng_state(rng["numpy"])
-
     def save(self, name: str, state: dict[str, Any] | None = None) -> Path:
         return save_checkpoint(state or self._state(), self.checkpoint_dir / f"{name}.pt")
 
-    # ------------------------------------------------------------------ training
+    # ------------------------------------------------------------------ one iteration's parts
+    def _advance_curriculum(self, metrics: dict[str, float]) -> None:
+        curriculum = self.cfg.curriculum
+        scale = promoted_scale(self.counters.curriculum_scale, metrics.get("train/success_rate"),
+                               curriculum.scale_step, curriculum.promotion_success)
+        if scale != self.counters.curriculum_scale:
+            self.counters.curriculum_scale = scale
+            self.env.set_initial_state_distribution(start_distribution(self.params, scale))
+            log.info("curriculum: training starts now use %.0f %% of the start box", 100 * scale)
+        metrics["train/curriculum_scale"] = self.counters.curriculum_scale
+
+    def _set_learning_rate(self) -> float:
+        ppo = self.cfg.ppo
+        rate = ppo.learning_rate
+        if ppo.anneal_lr:
+            rate = annealed_learning_rate(ppo.learning_rate, self.counters.frames, ppo.total_frames)
+        for group in self.optimizer.param_groups:
+            group["lr"] = rate
+        return rate
+
     def _update(self) -> dict[str, float]:
-        """PPO epochs over the buffer; returns mean loss terms."""
-        totals: dict[str, float] = {}
-        updates = 0
-        for _ in range(self.cfg.ppo.epochs):
-            for batch in self.buffer:
-                losses = self.loss(batch)
-                total = losses["loss_objective"] + losses["loss_critic"] + losses["loss_entropy"]
-                if not torch.isfinite(total):
-                    raise TrainingDiverged(
-                        f"non-finite loss ({total.item()}) at iteration {self.counters.iteration + 1}, "
-                        f"update {updates + 1}; last good checkpoint kept in {self.checkpoint_dir}"
-                    )
-                self.optimizer.zero_grad(set_to_none=True)
-                total.backward()
-                gradient_norm = torch.nn.utils.clip_grad_norm_(self.loss.parameters(), self.cfg.ppo.max_grad_norm)
-                if not torch.isfinite(gradient_norm):
-                    raise TrainingDiverged(
-                        f"non-finite gradient at iteration {self.counters.iteration + 1}, update {updates + 1}; "
-                        f"last good checkpoint kept in {self.checkpoint_dir}"
-                    )
-                self.optimizer.step()
-                updates += 1
-                for key in ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx",
-                            "clip_fraction", "explained_variance"):
-                    if key in losses.keys():
-                        totals[key] = totals.get(key, 0.0) + float(losses[key].detach().float().mean())
-        return {key: value / max(updates, 1) for key, value in totals.items()}
+        ppo = self.cfg.ppo
+        try:
+            return ppo_update(self.loss, self.optimizer, self.buffer, ppo.epochs, ppo.max_grad_norm,
+                              where=f"at iteration {self.counters.iteration + 1}")
+        except TrainingDiverged as error:
+            raise TrainingDiverged(f"{error}; last good checkpoint kept in {self.checkpoint_dir}") from None
 
-    @torch.no_grad()
-    def _clip_fraction_by_source(self) -> dict[str, float]:
-        """Fraction of rows whose probability ratio is outside the clip range, per data source."""
-        data = self.buffer[:]
-        if "relabelled" not in data.keys():
-            return {}
-        ratio = (self.actor.get_dist(data).log_prob(data["action"]) - data["action_log_prob"]).exp()
-        clipped = (ratio - 1).abs() > self.cfg.ppo.clip_epsilon
-        relabelled = data["relabelled"]
-        result = {}
-        for name, mask in (("own", ~relabelled), ("relabelled", relabelled)):
-            if bool(mask.any()):
-                result[f"loss/clip_fraction_{name}"] = float(clipped[mask].float().mean())
-        return result
-
-    @staticmethod
-    def episode_statistics(data: TensorDictBase) -> dict[str, float]:
-        """Outcome rates and per-episode means over the episodes that ended in ``data``."""
-        done = data["next", "done"].squeeze(-1)
-        finished = int(done.sum())
-        if finished == 0:
-            return {"train/episodes": 0}
-        outcome = data["next", "outcome"][done]
-        return {
-            "train/episodes": finished,
-            "train/success_rate": float((outcome == Outcome.SUCCESS).float().mean()),
-            "train/out_of_airspace_rate": float((outcome == Outcome.OUT_OF_AIRSPACE).float().mean()),
-            "train/time_out_rate": float((outcome == Outcome.BUDGET_EXHAUSTED).float().mean()),
-            "train/episode_reward": float(data["next", "episode_return"][done].mean()),
-            "train/decisions_per_episode": float(data["next", "step_count"][done].float().mean()),
-            "train/instructions_per_episode": float(data["next", "instruction_count"][done].float().mean()),
-        }
+    def _evaluation_due(self) -> bool:
+        schedule = self.cfg.eval
+        if schedule.interval_seconds:
+            if self.counters.wall_time < self.counters.next_evaluation_time:
+                return False
+            while self.counters.next_evaluation_time <= self.counters.wall_time:
+                self.counters.next_evaluation_time += schedule.interval_seconds
+            return True
+        return bool(schedule.interval) and self.counters.iteration % schedule.interval == 0
 
     def evaluate(self, episodes: int | None = None, record_trajectories: bool = False) -> tuple[dict[str, Any], Any]:
         env = self.eval_env
@@ -334,87 +245,75 @@ class Trainer:
         records = run_episodes(env, self.actor, record_trajectories=record_trajectories)
         return summarise(records), records
 
-    def _finished(self, wall_time: float) -> str | None:
+    def _periodic_evaluation(self) -> dict[str, float]:
+        evaluation, _ = self.evaluate()
+        return {f"eval/{key}": evaluation[key]
+                for key in ("success_rate", "instructions_per_episode", "decisions_per_episode", "mean_return")}
+
+    def _finished(self) -> str | None:
         ppo = self.cfg.ppo
         if self.counters.frames >= ppo.total_frames:
             return f"reached ppo.total_frames={ppo.total_frames}"
-        if ppo.max_minutes and wall_time >= 60 * ppo.max_minutes:
+        if ppo.max_minutes and self.counters.wall_time >= 60 * ppo.max_minutes:
             return f"reached ppo.max_minutes={ppo.max_minutes}"
         return None
 
+    # ------------------------------------------------------------------ the loop
     def train(self) -> dict[str, Any]:
         """Run until the frame or time budget (or the target success) is reached; return the final evaluation."""
         cfg = self.cfg
         self.run_dir.mkdir(parents=True, exist_ok=True)
         if self.counters.iteration == 0:
-            self.logger.log_hparams(flatten_config(OmegaConf.to_container(OmegaConf.structured(cfg), resolve=True)))
+            self.metrics.log_hparams(OmegaConf.to_container(OmegaConf.structured(cfg), resolve=True))
+            if cfg.eval.interval or cfg.eval.interval_seconds:
+                # Where the run starts from (for pretrained and reuse: the baseline's zero-shot success on this task).
+                self._log(self._periodic_evaluation())
         show_progress = cfg.progress and sys.stderr.isatty()
-        bar = tqdm.tqdm(total=cfg.ppo.total_frames, initial=self.counters.frames, unit="dec", disable=not show_progress,
-                        dynamic_ncols=True)
-        start = time.perf_counter()
-        wall_offset = self.counters.wall_time
+        bar = tqdm.tqdm(total=cfg.ppo.total_frames, initial=self.counters.frames, unit="dec", dynamic_ncols=True,
+                        disable=not show_progress)
+        start, wall_offset = time.perf_counter(), self.counters.wall_time
         self._snapshot = self._state()
-        if self.counters.iteration == 0 and cfg.eval.interval:
-            # Where the run starts from (for pretrained and reuse: the baseline's zero-shot success on this task).
-            evaluation, _ = self.evaluate()
-            self._log({"eval/success_rate": evaluation["success_rate"],
-                       "eval/instructions_per_episode": evaluation["instructions_per_episode"]})
-        reason = self._finished(wall_offset)
+        reason = self._finished()
         try:
-            iterator = iter(self.collector)
+            batches = iter(self.collector)
             while reason is None:
                 iteration_start = time.perf_counter()
-                data = next(iterator)
+                data = next(batches)
                 collect_time = time.perf_counter() - iteration_start
+                learning_rate = self._set_learning_rate()
                 with torch.no_grad():
                     data = self.advantage(data)
                 self.buffer.empty()
-                reuse_start = time.perf_counter()
-                self.buffer.extend(data.reshape(-1))
-                reuse_time = time.perf_counter() - reuse_start
+                relabel_start = time.perf_counter()
+                self.buffer.extend(data.reshape(-1))  # runs the reuse transform (Algorithm 1) if there is one
+                relabel_time = time.perf_counter() - relabel_start
                 losses = self._update()
+
                 self.counters.iteration += 1
                 self.counters.frames += data.numel()
                 self.counters.wall_time = wall_offset + time.perf_counter() - start
-                metrics = {**self.episode_statistics(data), **{f"loss/{k}": v for k, v in losses.items()}}
-                metrics.update(self._clip_fraction_by_source())
+                iteration_time = time.perf_counter() - iteration_start
+                metrics = {**episode_statistics(data), **{f"loss/{k}": v for k, v in losses.items()},
+                           **clip_fraction_by_source(self.actor, self.buffer[:], cfg.ppo.clip_epsilon),
+                           "train/learning_rate": learning_rate, "train/iteration": self.counters.iteration,
+                           "time/decisions_per_second": data.numel() / iteration_time,
+                           "time/collection_decisions_per_second": data.numel() / max(collect_time, 1e-9),
+                           "time/iteration_seconds": iteration_time, "time/wall_time": self.counters.wall_time}
                 self._advance_curriculum(metrics)
                 if self.reuse is not None:
-                    metrics.update(self.reuse.last_statistics())
-                    metrics["time/reuse_seconds"] = reuse_time
-                iteration_time = time.perf_counter() - iteration_start
-                metrics.update({
-                    "time/decisions_per_second": data.numel() / iteration_time,
-                    "time/collection_decisions_per_second": data.numel() / max(collect_time, 1e-9),
-                    "time/iteration_seconds": iteration_time,
-                    "time/wall_time": self.counters.wall_time,
-                    "train/iteration": self.counters.iteration,
-                })
-                evaluation = None
-                if cfg.eval.interval and self.counters.iteration % cfg.eval.interval == 0:
-                    evaluation, _ = self.evaluate()
-                    metrics.update({
-                        "eval/success_rate": evaluation["success_rate"],
-                        "eval/instructions_per_episode": evaluation["instructions_per_episode"],
-                        "eval/decisions_per_episode": evaluation["decisions_per_episode"],
-                        "eval/mean_return": evaluation["mean_return"],
-                    })
+                    metrics.update(self.reuse.last_statistics(), **{"time/reuse_seconds": relabel_time})
+                if self._evaluation_due():
+                    metrics.update(self._periodic_evaluation())
                 self._snapshot = self._state()
                 self._log(metrics)
-                if evaluation is not None and evaluation["success_rate"] > self.counters.best_success:
-                    self.counters.best_success = evaluation["success_rate"]
-                    self._snapshot = self._state()
-                    self.save("best", self._snapshot)
-                if self.counters.iteration % cfg.checkpoint_interval == 0:
-                    self.save("latest", self._snapshot)
+                self._checkpoint(metrics)
                 bar.update(data.numel())
                 bar.set_postfix(success=f"{metrics.get('train/success_rate', float('nan')):.3f}",
                                 dps=f"{metrics['time/decisions_per_second']:.0f}")
-                if not show_progress and (evaluation is not None or self.counters.iteration == 1):
-                    log.info(self._progress_line(metrics))
-                reason = self._finished(self.counters.wall_time)
-                if evaluation is not None and cfg.target_success and evaluation["success_rate"] >= cfg.target_success:
-                    reason = f"periodic evaluation reached target_success={cfg.target_success}"
+                if not show_progress and ("eval/success_rate" in metrics or self.counters.iteration == 1):
+                    log.info(progress_line(self.counters.iteration, self.counters.frames, self.counters.wall_time,
+                                           metrics))
+                reason = self._finished() or self._target_reached(metrics)
         except KeyboardInterrupt:
             bar.close()
             path = self.save("latest", self._snapshot)
@@ -428,30 +327,24 @@ class Trainer:
         log.info("training stopped: %s", reason)
         return self.final_evaluation()
 
-    def _progress_line(self, metrics: dict[str, float]) -> str:
-        parts = [f"iter {self.counters.iteration}", f"decisions {self.counters.frames}",
-                 f"wall {self.counters.wall_time:.0f}s",
-                 f"train success {metrics.get('train/success_rate', float('nan')):.3f}"]
-        if "eval/success_rate" in metrics:
-            parts.append(f"eval success {metrics['eval/success_rate']:.3f}")
-        parts.append(f"{metrics['time/decisions_per_second']:.0f} dec/s")
-        return " | ".join(parts)
+    def _checkpoint(self, metrics: dict[str, float]) -> None:
+        """``best`` on a new best periodic evaluation, ``latest`` every ``checkpoint_interval`` iterations."""
+        success = metrics.get("eval/success_rate")
+        if success is not None and success > self.counters.best_success:
+            self.counters.best_success = success
+            self._snapshot = self._state()
+            self.save("best", self._snapshot)
+        if self.counters.iteration % self.cfg.checkpoint_interval == 0:
+            self.save("latest", self._snapshot)
+
+    def _target_reached(self, metrics: dict[str, float]) -> str | None:
+        target, success = self.cfg.target_success, metrics.get("eval/success_rate")
+        if target and success is not None and success >= target:
+            return f"periodic evaluation reached target_success={target}"
+        return None
 
     def _log(self, metrics: dict[str, float]) -> None:
-        for key, value in metrics.items():
-            if isinstance(value, int | float) and math.isfinite(value):
-                self.logger.log_scalar(key, value, step=self.counters.frames)
-        row = {"iteration": self.counters.iteration, "frames": self.counters.frames,
-               "wall_time": round(self.counters.wall_time, 3)}
-        for key in ("train/success_rate", "eval/success_rate", "train/instructions_per_episode",
-                    "train/reuse_fraction", "train/e"):
-            row[key] = metrics.get(key, "")
-        new_file = not self._metrics_file.exists()
-        with self._metrics_file.open("a", newline="") as file:
-            writer = csv.DictWriter(file, fieldnames=list(row))
-            if new_file:
-                writer.writeheader()
-            writer.writerow(row)
+        self.metrics.log(metrics, self.counters.iteration, self.counters.frames, self.counters.wall_time)
 
     def final_evaluation(self) -> dict[str, Any]:
         """The paper's evaluation (``eval.episodes`` deterministic episodes) -> ``eval/eval.json``."""
@@ -466,19 +359,3 @@ class Trainer:
         plot_trajectories(records, self.run_dir / "eval" / "trajectories.png", self.params.simulation.airspace,
                           title=f"{task_label(self.cfg.task)}, {self.cfg.method.name}: 10 evaluation episodes")
         return summary
-
-
-def write_evaluation(directory: Path, summary: dict[str, Any], records) -> None:
-    """``eval.json`` (summary) and ``episodes.csv`` (one row per episode)."""
-    directory.mkdir(parents=True, exist_ok=True)
-    (directory / "eval.json").write_text(json.dumps(summary, indent=2) + "\n")
-    with (directory / "episodes.csv").open("w", newline="") as file:
-        writer = csv.writer(file)
-        writer.writerow(["episode", "x0_m", "y0_m", "z0_m", "outcome", "decisions", "instructions", "return",
-                         "final_distance_m"])
-        for index in range(records.outcome.numel()):
-            x0, y0, z0 = records.initial_aircraft_state[index, :3].tolist()
-            writer.writerow([index, round(x0, 1), round(y0, 1), round(z0, 1),
-                             Outcome(int(records.outcome[index])).name.lower(), int(records.decisions[index]),
-                             int(records.instructions[index]), round(float(records.episode_return[index]), 4),
-                             round(float(records.final_distance[index]), 1)])

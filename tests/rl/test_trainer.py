@@ -11,6 +11,7 @@ from tensordict import TensorDict, TensorDictBase
 
 from agrl.core.termination import Outcome
 from agrl.rl.checkpoint import load_checkpoint
+from agrl.rl.metrics import episode_statistics
 from agrl.rl.trainer import Trainer, TrainingDiverged
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
@@ -65,7 +66,7 @@ def test_episode_statistics_counts_only_finished_rows():
         "step_count": step_count, "instruction_count": instruction_count,
     }, batch_size=[2, 3])}, batch_size=[2, 3])
 
-    stats = Trainer.episode_statistics(data)
+    stats = episode_statistics(data)
     assert stats["train/episodes"] == 3
     assert stats["train/success_rate"] == pytest.approx(2 / 3)
     assert stats["train/out_of_airspace_rate"] == pytest.approx(1 / 3)
@@ -75,7 +76,7 @@ def test_episode_statistics_counts_only_finished_rows():
     assert stats["train/instructions_per_episode"] == pytest.approx((1 + 3 + 2) / 3)
 
     data["next", "done"] = torch.zeros_like(data["next", "done"])
-    assert Trainer.episode_statistics(data) == {"train/episodes": 0}
+    assert episode_statistics(data) == {"train/episodes": 0}
 
 
 # ---------------------------------------------------------------------------- determinism

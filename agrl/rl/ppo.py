@@ -1,0 +1,81 @@
+"""The PPO pieces: TorchRL's ``ClipPPOLoss`` and ``GAE``, and the epochs-over-minibatches update."""
+
+from __future__ import annotations
+
+import torch
+from tensordict import TensorDictBase
+from torchrl.data import TensorDictReplayBuffer
+from torchrl.objectives import ClipPPOLoss
+from torchrl.objectives.value import GAE
+
+#: Loss outputs averaged over an iteration's updates and logged as ``loss/<name>``.
+LOGGED_LOSS_TERMS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction",
+                     "explained_variance")
+
+
+class TrainingDiverged(RuntimeError):
+    """A loss or gradient became NaN or infinite; the last good checkpoint is kept."""
+
+
+def make_advantage(gamma: float, gae_lambda: float, critic, device: torch.device) -> GAE:
+    """GAE with the critic as value network (``critic=None``: values are supplied with the data)."""
+    return GAE(gamma=gamma, lmbda=gae_lambda, value_network=critic, average_gae=False, device=device)
+
+
+def make_loss(actor, critic, clip_epsilon: float, entropy_coeff: float, critic_coeff: float) -> ClipPPOLoss:
+    return ClipPPOLoss(actor, critic, clip_epsilon=clip_epsilon, entropy_coeff=entropy_coeff,
+                       critic_coeff=critic_coeff, normalize_advantage=True, loss_critic_type="smooth_l1")
+
+
+def ppo_update(
+    loss: ClipPPOLoss,
+    optimizer: torch.optim.Optimizer,
+    buffer: TensorDictReplayBuffer,
+    epochs: int,
+    max_grad_norm: float,
+    where: str,
+) -> dict[str, float]:
+    """``epochs`` passes over the buffer in minibatches; the mean of each logged loss term.
+
+    Raises :class:`TrainingDiverged` (naming ``where`` and the update) on a non-finite loss or gradient,
+    before the optimiser step, so the parameters stay finite.
+    """
+    totals: dict[str, float] = {}
+    updates = 0
+    for _ in range(epochs):
+        for batch in buffer:
+            losses = loss(batch)
+            total = losses["loss_objective"] + losses["loss_critic"] + losses["loss_entropy"]
+            if not torch.isfinite(total):
+                raise TrainingDiverged(f"non-finite loss ({total.item()}) {where}, update {updates + 1}")
+            optimizer.zero_grad(set_to_none=True)
+            total.backward()
+            gradient_norm = torch.nn.utils.clip_grad_norm_(loss.parameters(), max_grad_norm)
+            if not torch.isfinite(gradient_norm):
+                raise TrainingDiverged(f"non-finite gradient {where}, update {updates + 1}")
+            optimizer.step()
+            updates += 1
+            for key in LOGGED_LOSS_TERMS:
+                if key in losses.keys():
+                    totals[key] = totals.get(key, 0.0) + float(losses[key].detach().float().mean())
+    return {key: value / max(updates, 1) for key, value in totals.items()}
+
+
+def annealed_learning_rate(initial: float, frames: int, total_frames: int) -> float:
+    """Linear decay from ``initial`` to 0 over the frame budget (``ppo.anneal_lr``)."""
+    return initial * max(0.0, 1.0 - frames / total_frames)
+
+
+@torch.no_grad()
+def clip_fraction_by_source(actor, data: TensorDictBase, clip_epsilon: float) -> dict[str, float]:
+    """Fraction of rows whose probability ratio is outside the clip range, for own and relabelled rows."""
+    if "relabelled" not in data.keys():
+        return {}
+    ratio = (actor.get_dist(data).log_prob(data["action"]) - data["action_log_prob"]).exp()
+    clipped = (ratio - 1).abs() > clip_epsilon
+    relabelled = data["relabelled"]
+    return {
+        f"loss/clip_fraction_{name}": float(clipped[mask].float().mean())
+        for name, mask in (("own", ~relabelled), ("relabelled", relabelled))
+        if bool(mask.any())
+    }
