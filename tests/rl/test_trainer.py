@@ -161,3 +161,27 @@ def test_non_finite_loss_stops_training_and_keeps_the_last_good_checkpoint(
         assert all(torch.isfinite(value).all() for value in kept[network].values()), network
         assert_bitwise_equal(kept[network], good[network], network)
     assert [int(row["iteration"]) for row in read_csv(run / "metrics.csv")] == [1]
+
+
+# ---------------------------------------------------------------------------- evaluation schedule
+def test_wall_clock_evaluation_schedule(tmp_path, compose_train, tiny_args):
+    config = compose_train(*tiny_args({"eval.interval_seconds": 10, "eval.interval": 3}))
+    trainer = Trainer(config, tmp_path / "run")
+    due = []
+    for wall_time in (0.0, 4.0, 9.9, 10.0, 12.0, 35.0, 39.0, 40.0):
+        trainer.counters.wall_time = wall_time
+        due.append(trainer._evaluation_due())
+    # Every 10 s of training (eval.interval is then ignored); a long iteration skips the missed slots.
+    assert due == [True, False, False, True, False, True, False, True]
+    assert trainer.counters.next_evaluation_time == 50.0
+    trainer.collector.shutdown()
+
+
+def test_iteration_evaluation_schedule(tmp_path, compose_train, tiny_args):
+    trainer = Trainer(compose_train(*tiny_args({"eval.interval": 3})), tmp_path / "run")
+    due = []
+    for iteration in range(1, 8):
+        trainer.counters.iteration = iteration
+        due.append(trainer._evaluation_due())
+    assert due == [False, False, True, False, False, True, False]
+    trainer.collector.shutdown()
