@@ -27,6 +27,21 @@ def error_lines(stderr: str) -> list[str]:
     return [line for line in stderr.splitlines() if line.strip()]
 
 
+def periodic_success_of(checkpoint) -> float:
+    """Success of a training checkpoint's actor on its run's periodic evaluation set (eval.periodic_episodes
+    episodes from the evaluation seed, seed + 1000003), evaluated here from the saved actor and config."""
+    from agrl.config import RewardConfig, SimulationConfig, TaskConfig, to_guidance_parameters
+    from agrl.envs.guidance import GuidanceEnv
+    from agrl.evaluate import _structured, load_agent
+    from agrl.rl.evaluation import run_episodes, summarise
+
+    actor, saved, _ = load_agent(str(checkpoint))
+    params = to_guidance_parameters(_structured(TaskConfig, saved["task"]), _structured(RewardConfig, saved["reward"]),
+                                    _structured(SimulationConfig, saved["simulation"]), compile=False)
+    env = GuidanceEnv(params, num_envs=saved["eval"]["periodic_episodes"], seed=saved["seed"] + 1_000_003)
+    return summarise(run_episodes(env, actor))["success_rate"]
+
+
 # ---------------------------------------------------------------------------- the shared tiny run
 def test_tiny_run_writes_checkpoints_metrics_and_evaluation(tiny_run):
     run = tiny_run.run_dir
@@ -46,7 +61,8 @@ def test_tiny_run_writes_checkpoints_metrics_and_evaluation(tiny_run):
     assert rows[0]["train/success_rate"] == "" and float(rows[0]["wall_time"]) == 0.0
     # Periodic evaluation every 2 iterations (eval.interval=2), training success every iteration.
     assert [row["eval/success_rate"] != "" for row in rows] == [True, False, True, False, True]
-    assert all(0.0 <= float(row["train/success_rate"]) <= 1.0 for row in rows[1:])
+    # The last periodic evaluation is the final actor's on the fixed periodic set: evaluate it again here.
+    assert float(rows[-1]["eval/success_rate"]) == periodic_success_of(run / "checkpoints" / "latest.pt")
 
     assert (run / "eval" / "trajectories.png").stat().st_size > 1000
     episodes = read_csv(run / "eval" / "episodes.csv")
@@ -86,7 +102,20 @@ def test_tiny_run_tensorboard_scalars(tiny_run):
     steps = [event.step for event in events.Scalars("time/decisions_per_second")]
     assert steps == [512 * i for i in range(1, tiny_run.iterations + 1)]
     assert [event.step for event in events.Scalars("eval/success_rate")] == [0, 1024, 2048]
-    assert all(0.0 <= event.value <= 1.0 for event in events.Scalars("loss/clip_fraction"))
+    # Training success is a count of successful episodes over the episodes that ended in the iteration.
+    episodes = [event.value for event in events.Scalars("train/episodes")]
+    successes = [rate.value * count for rate, count in zip(events.Scalars("train/success_rate"), episodes,
+                                                             strict=True)]
+    assert all(count >= 1 and count == int(count) for count in episodes), episodes
+    assert all(abs(value - round(value)) < 1e-4 and 0 <= round(value) <= count
+               for value, count in zip(successes, episodes, strict=True)), (successes, episodes)
+    rows = read_csv(tiny_run.run_dir / "metrics.csv")[1:]
+    assert [float(row["train/success_rate"]) for row in rows] == pytest.approx(
+        [event.value for event in events.Scalars("train/success_rate")], rel=1e-6)
+    # The clip fraction of an iteration is the mean over its 4 minibatches of 128 rows (512 decisions, one
+    # epoch) of a 0/1 flag per row: a whole number of 512ths.
+    for event in events.Scalars("loss/clip_fraction"):
+        assert event.value * 512 == round(event.value * 512) and 0 <= event.value <= 1, event.value
 
 
 # ---------------------------------------------------------------------------- Ctrl-C
