@@ -12,7 +12,7 @@ import time
 import pytest
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-from agrl.rl.checkpoint import load_checkpoint
+from agrl.rl.checkpoint import CheckpointError, load_checkpoint
 from agrl.rl.trainer import Trainer
 
 TRAINING_STATE = ("actor", "critic", "optimizer", "counters", "carrier", "rng", "config")
@@ -215,3 +215,86 @@ def test_resume_from_corrupt_checkpoint_exits_2_naming_the_file(bad_invocations)
     assert len(lines) == 1, lines
     assert lines[0].startswith("agrl.train: error:")
     assert str(bad_invocations["bad_file"]) in lines[0]
+
+
+# ---------------------------------------------------------------------------- bad inputs of runs that start
+@pytest.fixture(scope="module")
+def bad_runs(run_cli, tiny_run, tiny_args, tmp_path_factory):
+    """Invocations that get past the config's schema and fail when the run starts, run at once."""
+    import shutil
+
+    import torch
+
+    from agrl.rl.checkpoint import save_checkpoint
+
+    directory = tmp_path_factory.mktemp("bad_runs")
+    # A baseline whose critic holds a NaN: the value targets and hence the first PPO loss are NaN.
+    payload = load_checkpoint(tiny_run.run_dir / "checkpoints" / "latest.pt")
+    critic = {key: value.clone() for key, value in payload["critic"].items()}
+    next(iter(critic.values())).view(-1)[0] = float("nan")
+    nan_baseline = save_checkpoint({**payload, "critic": critic}, directory / "nan_critic.pt")
+    assert not torch.isfinite(next(iter(critic.values()))).all()
+    # A copy of the shared tiny run to resume (the shared one stays read-only).
+    resumable = directory / "resumable"
+    shutil.copytree(tiny_run.run_dir, resumable)
+    missing = directory / "missing.pt"
+    jobs = {
+        "diverges": ("train", *tiny_args(), "method=pretrained", f"method.baseline={nan_baseline}",
+                     f"hydra.run.dir={directory / 'diverges'}"),
+        "reuse-without-baseline": ("train", *tiny_args(), "method=reuse", "method.baseline=null",
+                                   f"hydra.run.dir={directory / 'no_baseline'}"),
+        "reuse-missing-baseline": ("train", *tiny_args(), "method=reuse", f"method.baseline={missing}",
+                                   f"hydra.run.dir={directory / 'missing_baseline'}"),
+        "stride-over-budget": ("train", *tiny_args(), "method=reuse", "method.candidate_stride=31",
+                               f"hydra.run.dir={directory / 'stride'}"),
+        "resume-other-num-envs": ("train", f"resume={resumable}", "ppo.num_envs=64",
+                                  f"hydra.run.dir={directory / 'resume_hydra'}"),
+    }
+    return {"directory": directory, "missing": missing, "resumable": resumable, **run_cli.batch(jobs)}
+
+
+def single_error_line(result, code: int) -> str:
+    assert result.returncode == code, result.stderr[-3000:]
+    lines = error_lines(result.stderr)
+    assert len(lines) == 1, lines
+    return lines[0]
+
+
+def test_divergence_exits_3_with_the_iteration_and_the_checkpoint_folder(bad_runs):
+    line = single_error_line(bad_runs["diverges"], 3)
+    checkpoints = bad_runs["directory"] / "diverges" / "checkpoints"
+    assert line == (f"agrl.train: error: non-finite loss (nan) at iteration 1, update 1; "
+                    f"last good checkpoint kept in {checkpoints}")
+
+
+def test_reuse_without_a_baseline_is_one_line(bad_runs):
+    line = single_error_line(bad_runs["reuse-without-baseline"], 2)
+    assert line == ("agrl.train: error: method.baseline=None is not allowed: "
+                    "method=reuse needs a baseline checkpoint (a path, or 'baseline')")
+    line = single_error_line(bad_runs["reuse-missing-baseline"], 2)
+    assert line == f"agrl.train: error: {bad_runs['missing']}: no such checkpoint file"
+
+
+def test_candidate_stride_beyond_the_decision_budget_is_one_line(bad_runs):
+    # tiny_args: simulation.max_decisions=30, so t_n = 31 is never reached.
+    line = single_error_line(bad_runs["stride-over-budget"], 2)
+    assert line == "agrl.train: error: candidate_stride=31 is not allowed: between 1 and max_decisions=30"
+
+
+def test_resuming_with_another_num_envs_is_refused_and_leaves_the_run_alone(bad_runs, tiny_run):
+    line = single_error_line(bad_runs["resume-other-num-envs"], 2)
+    assert line == ("agrl.train: error: ppo.num_envs=64 is not allowed with resume: a resumed run keeps its "
+                    "saved config; only ppo.total_frames, ppo.max_minutes, target_success, progress, device, "
+                    "checkpoint_interval, eval.* may be given")
+    latest = bad_runs["resumable"] / "checkpoints" / "latest.pt"
+    assert latest.read_bytes() == (tiny_run.run_dir / "checkpoints" / "latest.pt").read_bytes()
+
+
+@pytest.mark.usefixtures("torch_one_thread")
+def test_a_checkpoint_of_another_num_envs_is_refused_by_the_trainer(tiny_run, compose_train, tiny_args, tmp_path):
+    latest = tiny_run.run_dir / "checkpoints" / "latest.pt"
+    payload = {**load_checkpoint(latest), "_path": str(latest)}
+    config = compose_train(*tiny_args({"ppo.num_envs": 64}))
+    with pytest.raises(CheckpointError) as raised:
+        Trainer(config, tmp_path / "run", resume_payload=payload)
+    assert str(raised.value) == f"{latest}: checkpoint has 32 environments, this run has 64"
