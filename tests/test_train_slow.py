@@ -23,6 +23,9 @@ def train_and_read_evaluation(run_cli, run_dir, *overrides: str, timeout_minutes
     assert result.returncode == 0, f"{result.stdout[-3000:]}\n{result.stderr[-3000:]}"
     evaluation = json.loads((run_dir / "eval" / "eval.json").read_text())
     assert evaluation["episodes"] == 1000  # conf/config.yaml eval.episodes: the paper's 1000 simulations
+    # Shown with `pytest -rP` (docs/training.md records these).
+    print({key: evaluation[key] for key in ("success_rate", "instructions_per_episode", "iterations",
+                                            "decisions_trained", "training_wall_time_s")})
     return evaluation
 
 
