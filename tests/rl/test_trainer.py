@@ -60,9 +60,17 @@ def test_episode_statistics_counts_only_finished_rows():
     episode_return = torch.tensor([[1.0, 10.0, 99.0], [-20.0, 99.0, 40.0]])
     step_count = torch.tensor([[1, 2, 1], [4, 1, 2]])
     instruction_count = torch.tensor([[0, 1, 7], [3, 7, 2]])
+    # The reward's parts per step (they sum to the reward, as the env makes them).
+    parts = {
+        "reward_termination": torch.tensor([[0.0, 20.0, 0.0], [-20.0, 0.0, 20.0]]),
+        "reward_action_shaping": torch.tensor([[0.09, -0.08, 0.0], [0.0, 0.01, -0.01]]),
+        "reward_position_shaping": torch.tensor([[0.5, 0.25, -0.25], [1.0, 0.0, 0.5]]),
+        "reward_switch_cost": torch.tensor([[-0.3, 0.0, -0.3], [0.0, 0.0, -0.3]]),
+    }
+    reward = sum(parts.values()).unsqueeze(-1)
     data = TensorDict({"next": TensorDict({
         "done": done.unsqueeze(-1), "outcome": outcome, "episode_return": episode_return,
-        "step_count": step_count, "instruction_count": instruction_count,
+        "step_count": step_count, "instruction_count": instruction_count, "reward": reward, **parts,
     }, batch_size=[2, 3])}, batch_size=[2, 3])
 
     stats = Trainer.episode_statistics(data)
@@ -73,9 +81,17 @@ def test_episode_statistics_counts_only_finished_rows():
     assert stats["train/episode_reward"] == pytest.approx((10.0 - 20.0 + 40.0) / 3)
     assert stats["train/decisions_per_episode"] == pytest.approx((2 + 4 + 2) / 3)
     assert stats["train/instructions_per_episode"] == pytest.approx((1 + 3 + 2) / 3)
+    # Means per decision over all six transitions, finished or not.
+    assert stats["train/reward_termination"] == pytest.approx(20.0 / 6)
+    assert stats["train/reward_action_shaping"] == pytest.approx(0.01 / 6)
+    assert stats["train/reward_position_shaping"] == pytest.approx(2.0 / 6)
+    assert stats["train/reward_switch_cost"] == pytest.approx(-0.9 / 6)
+    assert stats["train/reward_per_decision"] == pytest.approx((20.0 + 0.01 + 2.0 - 0.9) / 6)
 
     data["next", "done"] = torch.zeros_like(data["next", "done"])
-    assert Trainer.episode_statistics(data) == {"train/episodes": 0}
+    idle = Trainer.episode_statistics(data)
+    assert idle["train/episodes"] == 0 and "train/success_rate" not in idle
+    assert idle["train/reward_switch_cost"] == pytest.approx(-0.9 / 6)  # logged even when no episode ended
 
 
 # ---------------------------------------------------------------------------- determinism
