@@ -11,9 +11,9 @@ from tensordict import TensorDict
 from torchrl.envs.utils import check_env_specs
 
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
+from agrl.core.reward import RewardParameters
 from agrl.core.termination import Outcome
 from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
-from agrl.core.reward import RewardParameters
 from agrl.envs.guidance import REWARD_PART_KEYS, STATE_KEYS
 from agrl.envs.parameters import DestinationMotion
 
