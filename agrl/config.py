@@ -100,6 +100,7 @@ class RewardConfig:
     c7: float = 0.5
     c8: float = 1e-5
     gamma: float = 0.99
+    switch_cost: float = 0.0  # not in the paper: reward units per instruction (conf/reward/switch.yaml)
 
     def __post_init__(self) -> None:
         _require(self.c1 > 0, "reward.c1", self.c1, "> 0 (success must pay, equation 6)")
@@ -107,6 +108,8 @@ class RewardConfig:
         _require(self.c4 < self.c5 <= 0, "reward.c4/c5", (self.c4, self.c5), "c4 < c5 <= 0 (equation 9)")
         _require(min(self.c6, self.c7, self.c8) >= 0, "reward.c6..c8", (self.c6, self.c7, self.c8), ">= 0")
         _require(0 < self.gamma <= 1, "reward.gamma", self.gamma, "(0, 1]")
+        _require(0 <= self.switch_cost < self.c1, "reward.switch_cost", self.switch_cost,
+                 "[0, c1) reward units per instruction")
 
 
 # ---------------------------------------------------------------------------- simulation
@@ -419,6 +422,7 @@ def to_guidance_parameters(task: TaskConfig, reward: RewardConfig, simulation: S
             distance_weight=reward.c6, heading_weight=reward.c7, altitude_weight=reward.c8,
             gamma=reward.gamma,
             use_continuous_action=reward.use_continuous_action, use_position=reward.use_position,
+            switch_cost=reward.switch_cost,
         ),
         initial_state=InitialStateDistribution(
             x_range=tuple(start.x_range), y_range=tuple(start.y_range), z_range=tuple(start.z_range),
