@@ -20,7 +20,7 @@ from agrl.core.destinations import redraw_irregular_motion
 from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
 from agrl.core.parameters import GuidanceParameters, MotionKind
-from agrl.core.reward import potential, shaping_reward, step_reward, switch_cost_reward, termination_reward
+from agrl.core.reward import potential, shaping_reward, switch_cost_reward, termination_reward
 from agrl.core.simulation import DecisionSimulator
 from agrl.core.termination import Outcome
 
@@ -125,19 +125,14 @@ class GuidanceEnv(EnvBase):
             simulation.airspace, simulation.limits,
         )
 
-    def potential(self, state: TensorDictBase, terminal: torch.Tensor) -> torch.Tensor:
-        return potential(
-            state["aircraft_state"], state["destination_state"], state["last_action"],
-            state["action_before_last"], terminal, self.params.reward,
-        )
-
     def reward_parts(
         self, state: TensorDictBase, next_state: TensorDictBase, terminal: torch.Tensor, switch_cost: torch.Tensor
     ) -> dict[str, torch.Tensor]:
-        """The step's reward split into its parts (:data:`REWARD_PART_KEYS`), for logging.
+        """The step's reward split into its parts (:data:`REWARD_PART_KEYS`); they sum to the reward.
 
-        Each shaping term is its own equation-7 difference of its own potential, so
-        the parts add up to the reward (to float rounding).
+        Each shaping term is its own equation-7 difference of its own potential
+        (equation 9's C or equations 10-11's P), which is exact since equation 7 is
+        linear in Phi = C + P.
         """
         params = self.params.reward
         parts = {"reward_termination": termination_reward(next_state["outcome"], params)}
@@ -294,11 +289,12 @@ class GuidanceEnv(EnvBase):
             batch_size=state.batch_size,
             device=self.device,
         )
-        potential_before = self.potential(state, torch.zeros_like(terminal))
-        potential_after = self.potential(next_state, terminal)
+        # Equation 5, R = T + F, with F split by potential term (equation 7 is linear in Phi = C + P), plus the
+        # optional switch cost: the parts are logged, and their sum is the reward.
         switch_cost = switch_cost_reward(action, state["last_action"], self.params.reward)
-        reward = step_reward(outcome, potential_before, potential_after, self.params.reward) + switch_cost
-        next_state.update(self.reward_parts(state, next_state, terminal, switch_cost))
+        parts = self.reward_parts(state, next_state, terminal, switch_cost)
+        next_state.update(parts)
+        reward = sum(parts.values())
         next_state["reward"] = reward.unsqueeze(-1)
         next_state["episode_return"] = state["episode_return"] + reward
         # An instruction is a decision that changes the maneuver being flown.
