@@ -9,7 +9,9 @@ integration step = 150 integration steps):
   at several batch sizes, eager and fused with ``torch.compile``, with the ratio to the
   reference;
 - ``torchrl_env``: the full TorchRL ``GuidanceEnv.step_and_maybe_reset`` (simulator, reward,
-  observation, TensorDict bookkeeping, partial resets: what a collector calls) at one batch size.
+  observation, TensorDict bookkeeping, partial resets: what a collector calls) at one batch size;
+- ``gym_env``: ``gymnasium.make("agrl/Guidance-v0")`` stepped with random maneuvers and reset at the
+  end of each episode (what a gymnasium training loop calls), with the ratio to the reference.
 
 Every line has ``name``, ``value`` and ``unit``, plus fields such as ``batch``,
 ``compiled``, ``substeps`` and ``device``. Each figure is the median of ``--repeats``
@@ -193,6 +195,39 @@ def bench_torchrl_env(params: GuidanceParameters, batch: int, compiled: bool, de
                            device, repeats, min_seconds)
 
 
+def bench_gym_env(params_task: dict, repeats: int, min_seconds: float) -> dict:
+    """Decisions per second of the single gymnasium env (random maneuvers, reset when an episode ends)."""
+    import gymnasium
+
+    import agrl  # noqa: F401 - registers agrl/Guidance-v0
+
+    env = gymnasium.make(agrl.GYM_ENV_ID, **params_task)
+    env.reset(seed=0)
+    actions = [random.Random(0).randrange(7) for _ in range(1024)]
+    position = [0]
+
+    def one_decision():
+        position[0] += 1
+        _, _, terminated, _, _ = env.step(actions[position[0] % 1024])
+        if terminated:
+            env.reset()
+
+    seconds, calls = time_call(one_decision, repeats, min_seconds, warmup=16)
+    return {
+        "name": "gym_env_decisions_per_second",
+        "value": _significant(1.0 / seconds),
+        "unit": "decisions/s",
+        "batch": 1,
+        "compiled": False,
+        "substeps": env.unwrapped.params.simulation.substeps,
+        "device": "cpu",
+        "implementation": "gymnasium.make('agrl/Guidance-v0'), one row in Python floats (agrl/envs/gym.py)",
+        "seconds_per_decision": _significant(seconds),
+        "calls_per_timing": calls,
+        "repeats": repeats,
+    }
+
+
 # ---------------------------------------------------------------------------- machine and CLI
 def _cpu_model() -> str:
     try:
@@ -298,6 +333,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                                    args.min_seconds)
         record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
         emit(record)
+    record = bench_gym_env(TASK, args.repeats, args.min_seconds)
+    record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
+    emit(record)
     return 0
 
 
