@@ -10,6 +10,9 @@ integration step = 150 integration steps):
   reference;
 - ``torchrl_env``: the full TorchRL ``GuidanceEnv.step_and_maybe_reset`` (simulator, reward,
   observation, TensorDict bookkeeping, partial resets: what a collector calls) at one batch size;
+- ``gym_vector_env``: ``gymnasium.make_vec("agrl/Guidance-v0", num_envs=N,
+  vectorization_mode="vector_entry_point")`` stepped with random numpy actions (next-step autoreset,
+  numpy out) at the TorchRL env's batch, eager and compiled;
 - ``gym_env``: ``gymnasium.make("agrl/Guidance-v0")`` stepped with random maneuvers and reset at the
   end of each episode (what a gymnasium training loop calls), with the ratio to the reference.
 
@@ -195,6 +198,33 @@ def bench_torchrl_env(params: GuidanceParameters, batch: int, compiled: bool, de
                            device, repeats, min_seconds)
 
 
+def bench_gym_vector_env(params_task: dict, batch: int, compiled: bool, device: torch.device, repeats: int,
+                         min_seconds: float) -> dict:
+    """Decisions per second of the gymnasium vector env (numpy actions in, numpy results out)."""
+    import gymnasium
+    import numpy as np
+
+    import agrl  # noqa: F401 - registers agrl/Guidance-v0
+
+    if compiled:
+        torch._dynamo.reset()
+    envs = gymnasium.make_vec(agrl.GYM_ENV_ID, num_envs=batch, vectorization_mode="vector_entry_point",
+                              compile=compiled, device=str(device), **params_task)
+    envs.reset(seed=0)
+    actions = np.random.default_rng(0).integers(0, 7, size=(16, batch))
+    position = [0]
+
+    def one_decision():
+        position[0] += 1
+        envs.step(actions[position[0] % 16])
+
+    params = envs.params
+    record = _time_decisions("gym_vector_env_decisions_per_second", one_decision, batch, envs.env.simulator, params,
+                             device, repeats, min_seconds)
+    envs.close()
+    return record
+
+
 def bench_gym_env(params_task: dict, repeats: int, min_seconds: float) -> dict:
     """Decisions per second of the single gymnasium env (random maneuvers, reset when an episode ends)."""
     import gymnasium
@@ -331,6 +361,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     for mode in args.modes:
         record = bench_torchrl_env(params, args.env_batch, mode == "compiled", device, args.repeats,
                                    args.min_seconds)
+        record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
+        emit(record)
+    for mode in args.modes:
+        record = bench_gym_vector_env(TASK, args.env_batch, mode == "compiled", device, args.repeats,
+                                      args.min_seconds)
         record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
         emit(record)
     record = bench_gym_env(TASK, args.repeats, args.min_seconds)

@@ -27,13 +27,14 @@ def test_quick_run_prints_json_lines():
         "simulator_decisions_per_second",
         "simulator_decisions_per_second",
         "torchrl_env_decisions_per_second",
+        "gym_vector_env_decisions_per_second",
         "gym_env_decisions_per_second",
     ]
     for record in records[1:]:
         assert record["unit"] == "decisions/s" and record["value"] > 0
         assert record["substeps"] == 150 and record["compiled"] is False
         assert {"batch", "device"} <= set(record)
-    assert [record["batch"] for record in records[2:]] == [8, 32, 8, 1]
+    assert [record["batch"] for record in records[2:]] == [8, 32, 8, 8, 1]
     assert all(record["speedup_vs_reference"] > 0 for record in records[2:])
 
 
