@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import sys
 from typing import Any
 
 import gymnasium
@@ -163,6 +165,10 @@ def observation_bounds(params: GuidanceParameters) -> tuple[np.ndarray, np.ndarr
     return low, high
 
 
+def _has_display() -> bool:
+    return sys.platform in ("darwin", "win32") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
 class GuidanceGymEnv(gymnasium.Env):
     """The paper's guidance MDP as an unbatched ``gymnasium.Env`` (``Discrete(7)`` maneuvers).
 
@@ -182,9 +188,18 @@ class GuidanceGymEnv(gymnasium.Env):
     task's). ``info`` holds ``outcome`` (``running``, ``success``, ``out_of_airspace``,
     ``budget_exhausted``), ``aircraft_state`` (x, y, z, v, theta, psi, phi), ``destination_state``
     (x, y, z, psi), ``step_count``, ``instruction_count`` and ``episode_return``.
+
+    ``render_mode="rgb_array"``: ``render()`` returns a ``(450, 800, 3)`` uint8 frame of the episode so far
+    (3-D view with the airspace box and a top view; :func:`agrl.plots.episode_frame`), what
+    ``gymnasium.wrappers.RecordVideo`` and stable-baselines3 need. ``render_mode="human"`` shows the
+    frames in a matplotlib window at every step and needs a display: without one (no ``DISPLAY`` or
+    ``WAYLAND_DISPLAY`` on Linux) ``metadata["render_modes"]`` lists only ``rgb_array`` and the constructor
+    raises ``ValueError`` for ``human`` (``gymnasium.make(..., render_mode="human")`` then applies
+    gymnasium's own ``HumanRendering`` wrapper, which needs pygame and a display).
     """
 
-    metadata = {"render_modes": []}
+    # "human" is offered only where a window can open (gymnasium's checker tries every listed mode).
+    metadata = {"render_modes": ["rgb_array", "human"] if _has_display() else ["rgb_array"], "render_fps": 4}
 
     def __init__(
         self,
@@ -197,8 +212,11 @@ class GuidanceGymEnv(gymnasium.Env):
         compile: bool = False,
         render_mode: str | None = None,
     ):
-        if render_mode is not None:
-            _fail("render_mode", render_mode, "None (this environment does not render)")
+        if render_mode not in (None, "rgb_array", "human"):
+            _fail("render_mode", render_mode, "None, 'rgb_array' or 'human'")
+        if render_mode == "human" and not _has_display():
+            _fail("render_mode", render_mode, "'human' needs a display (DISPLAY/WAYLAND_DISPLAY is not set): use "
+                  "'rgb_array' and show or record the frames")
         self.params = guidance_parameters(
             task=task, speed=speed, radius=radius, turn_direction=turn_direction,
             max_decisions=max_decisions, reward=reward, compile=compile,
@@ -213,6 +231,9 @@ class GuidanceGymEnv(gymnasium.Env):
         self.maneuver_names = MANEUVER_NAMES
         self._irregular = self.params.destination.kind is MotionKind.IRREGULAR
         self._running = False  # False before reset and after the end of an episode
+        self._aircraft_path: list = []  # positions at each decision, kept only when rendering
+        self._destination_path: list = []
+        self._window = None  # the "human" mode's matplotlib figure and image
 
     # ------------------------------------------------------------------ helpers
     def _observation(self) -> np.ndarray:
@@ -266,6 +287,10 @@ class GuidanceGymEnv(gymnasium.Env):
         self._episode_return = 0.0
         self._outcome = int(Outcome.RUNNING)
         self._running = True
+        if self.render_mode is not None:
+            self._aircraft_path, self._destination_path = [self._aircraft], [self._destination]
+            if self.render_mode == "human":
+                self.render()
         return self._observation(), self._info()
 
     def step(self, action):
@@ -302,7 +327,61 @@ class GuidanceGymEnv(gymnasium.Env):
         reward = step_reward_row(outcome, potential_before, self._potential(terminated), self.params.reward)
         self._episode_return += reward
         self._running = not terminated
+        if self.render_mode is not None:
+            self._aircraft_path.append(self._aircraft)
+            self._destination_path.append(self._destination)
+            if self.render_mode == "human":
+                self.render()
         return self._observation(), reward, terminated, False, self._info()
+
+    def render(self):
+        """The episode so far as an ``(H, W, 3)`` uint8 frame ("rgb_array"), or shown in a window ("human")."""
+        if self.render_mode is None:
+            return None
+        if not self._aircraft_path:
+            raise RuntimeError("agrl/Guidance-v0: call reset() before render()")
+        from agrl.plots import episode_frame
+
+        title = f"{self.params.destination.kind.value}  decision {self._step_count}/{self.params.max_decisions}"
+        frame = episode_frame(self._aircraft_path, self._destination_path, Outcome(self._outcome),
+                              self.params.simulation.airspace, f"{title}  return {self._episode_return:.2f}")
+        if self.render_mode == "rgb_array":
+            return frame
+        self._show(frame)
+        return None
+
+    def _show(self, frame: np.ndarray) -> None:
+        import matplotlib.pyplot as plt
+
+        if self._window is None:
+            _use_interactive_matplotlib()
+            figure = plt.figure(figsize=(frame.shape[1] / 100, frame.shape[0] / 100), dpi=100)
+            axes = figure.add_axes((0, 0, 1, 1))
+            axes.set_axis_off()
+            self._window = (figure, axes.imshow(frame))
+            plt.show(block=False)
+        else:
+            self._window[1].set_data(frame)
+        plt.pause(1.0 / self.metadata["render_fps"])
 
     def close(self):
         self._running = False
+        if self._window is not None:
+            import matplotlib.pyplot as plt
+
+            plt.close(self._window[0])
+            self._window = None
+
+
+def _use_interactive_matplotlib() -> None:
+    """Switch matplotlib (which agrl.plots sets to the file-only Agg) to the first interactive backend that loads."""
+    import matplotlib.pyplot as plt
+
+    for backend in ("macosx", "qtagg", "gtk4agg", "gtk3agg", "tkagg", "wxagg"):
+        try:
+            plt.switch_backend(backend)
+            return
+        except (ImportError, RuntimeError, ValueError):
+            continue
+    raise RuntimeError("render_mode='human': no interactive matplotlib backend (Qt, GTK, Tk, wx) could be loaded; "
+                       "use render_mode='rgb_array'")
