@@ -29,7 +29,13 @@ def test_quick_run_prints_json_lines():
         "torchrl_env_decisions_per_second",
         "gym_vector_env_decisions_per_second",
         "gym_env_decisions_per_second",
+        "guide_single_query_us",
+        "guide_batch_us_per_query",
     ]
+    guide_single, guide_batch = records[-2:]
+    assert guide_single["unit"] == guide_batch["unit"] == "us/query" and guide_single["value"] > 0
+    assert guide_single["batch"] == 1 and guide_batch["batch"] == 64 and guide_batch["guide"] == "checkpoint"
+    records = records[:-2]
     for record in records[1:]:
         assert record["unit"] == "decisions/s" and record["value"] > 0
         assert record["substeps"] == 150 and record["compiled"] is False
