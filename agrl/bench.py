@@ -281,12 +281,12 @@ def bench_guide(kind: str, batch: int, repeats: int, min_seconds: float) -> list
     aircraft, destination, _, _, _ = _inputs(params, batch, torch.device("cpu"))
     last_action = torch.randint(0, 7, (batch,), generator=torch.Generator().manual_seed(1))
     aircraft, destination, last_action = aircraft.numpy(), destination.numpy(), last_action.numpy()
-    rows = [(aircraft[i].tolist(), destination[i].tolist(), int(last_action[i])) for i in range(256)]
+    rows = [(aircraft[i].tolist(), destination[i].tolist(), int(last_action[i])) for i in range(min(256, batch))]
     position = [0]
 
     def one_query():
         position[0] += 1
-        return guide.instruct(*rows[position[0] % 256])
+        return guide.instruct(*rows[position[0] % len(rows)])
 
     single, single_calls = time_call(one_query, repeats, min_seconds, warmup=64)
     batched, batch_calls = time_call(lambda: guide.instruct_batch(aircraft, destination, last_action), repeats,
