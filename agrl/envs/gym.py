@@ -1,4 +1,4 @@
-"""A single, unbatched gymnasium environment over :class:`agrl.envs.GuidanceEnv`.
+"""The paper's MDP as a single, unbatched gymnasium environment (fast: one row in Python floats).
 
 ``import agrl`` registers it as ``agrl/Guidance-v0``, so any library that trains on
 gymnasium environments can use the paper's MDP::
