@@ -12,7 +12,10 @@ All rows are one :class:`agrl.envs.GuidanceEnv` (``num_envs`` rows), so a step c
 decision instead of ``num_envs`` Python ones. Autoreset follows gymnasium 1.x's default,
 ``AutoresetMode.NEXT_STEP``: the step on which a row's episode ends returns its terminal
 observation with ``terminated=True``; the next step ignores that row's action and returns its
-reset observation with reward 0 and ``terminated=truncated=False``.
+reset observation with reward 0 and ``terminated=truncated=False``. ``autoreset_mode="SameStep"``
+(``AutoresetMode.SAME_STEP``, what stable-baselines3 expects) resets such rows within the step that
+ends them: that step returns the reset observation, and the terminal observation and info in
+``info["final_obs"]`` (an object array, ``None`` for other rows) and ``info["final_info"]``.
 
 Seeding: ``reset(seed=s)`` seeds the batched generator (one seed for all rows; a list of
 per-row seeds is refused). With ``num_envs=1`` the draws are those of the single env
@@ -51,6 +54,7 @@ class GuidanceVectorEnv(VectorEnv):
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+    AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
 
     def __init__(
         self,
@@ -64,11 +68,16 @@ class GuidanceVectorEnv(VectorEnv):
         compile: bool = False,
         device: str = "cpu",
         render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
     ):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             _fail("num_envs", num_envs, "an integer >= 1")
         if render_mode is not None:
             _fail("render_mode", render_mode, "None (this vector environment does not render)")
+        modes = {mode.value: mode for mode in self.AUTORESET_MODES}
+        if modes.get(getattr(autoreset_mode, "value", autoreset_mode)) is None:
+            _fail("autoreset_mode", autoreset_mode, f"one of {', '.join(modes)}")
+        self.metadata = {**self.metadata, "autoreset_mode": modes[getattr(autoreset_mode, "value", autoreset_mode)]}
         self.params = guidance_parameters(
             task=task, speed=speed, radius=radius, turn_direction=turn_direction,
             max_decisions=max_decisions, reward=reward, compile=compile,
@@ -151,10 +160,23 @@ class GuidanceVectorEnv(VectorEnv):
                         following[key] = torch.where(mask.view(-1, *(1,) * (value.ndim - 1)), fresh[key], value)
                     reward = torch.where(mask, 0.0, reward)
                     terminated = terminated & ~mask
+            final = None
+            if self.metadata["autoreset_mode"] is AutoresetMode.SAME_STEP and bool(terminated.any()):
+                final = self._outputs(following)  # the terminal rows, before they restart
+                fresh = self.env.reset()
+                for key in _ROW_KEYS:
+                    value = following[key]
+                    following[key] = torch.where(terminated.view(-1, *(1,) * (value.ndim - 1)), fresh[key], value)
         self._state = following
         terminated = terminated.cpu().numpy().copy()
-        self._autoreset = terminated.copy()
         observation, info = self._outputs(following)
+        if self.metadata["autoreset_mode"] is AutoresetMode.NEXT_STEP:
+            self._autoreset = terminated.copy()
+        elif final is not None:
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            for row in np.flatnonzero(terminated):
+                final_obs[row] = final[0][row]
+            info.update(final_obs=final_obs, _final_obs=terminated, final_info=final[1], _final_info=terminated)
         truncated = np.zeros(self.num_envs, dtype=bool)  # the decision budget is part of the MDP (c3)
         return observation, reward.cpu().numpy().astype(np.float64), terminated, truncated, info
 

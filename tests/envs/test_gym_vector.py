@@ -157,3 +157,27 @@ def test_gymnasium_vector_wrappers_accept_it():
         if terminated.any():
             assert np.all(infos["episode"]["l"][terminated] == 2)
     assert finished == 3
+
+
+def test_same_step_autoreset_returns_the_reset_observation_and_the_final_one_in_info():
+    scenarios = {"aircraft_state": np.array([[9_000.0, 0.0, 1_000.0, 200.0, 0.0, 0.0, 0.0],  # out in decision 2
+                                             [-6_000.0, 3_000.0, 2_500.0, 200.0, 0.0, 0.0, 0.0]])}
+    envs = _make_vec(2, task="fixed", autoreset_mode="SameStep")
+    assert envs.metadata["autoreset_mode"] is gymnasium.vector.AutoresetMode.SAME_STEP
+    envs.reset(seed=0, options=scenarios)
+    single = gymnasium.make(ENV_ID, task="fixed")
+    single.reset(options={"aircraft_state": scenarios["aircraft_state"][0]})
+    envs.step(np.array([0, 0]))
+    single.step(0)
+    observations, rewards, terminated, _, infos = envs.step(np.array([0, 0]))
+    final_observation, final_reward, _, _, final_info = single.step(0)
+    assert terminated.tolist() == [True, False] and infos["_final_obs"].tolist() == [True, False]
+    assert infos["final_obs"][1] is None
+    np.testing.assert_allclose(infos["final_obs"][0], final_observation, rtol=0, atol=OBSERVATION_TOLERANCE)
+    assert infos["final_info"]["outcome"][0] == final_info["outcome"] == "out_of_airspace"
+    assert rewards[0] == pytest.approx(final_reward, abs=REWARD_TOLERANCE)
+    # the returned row is already a new episode (a random start of the task), the other row goes on
+    assert infos["step_count"].tolist() == [0, 2] and infos["outcome"][0] == "running"
+    assert not np.allclose(observations[0], final_observation, atol=1e-2)
+    with pytest.raises(ValueError, match="autoreset_mode='Disabled' is not allowed: one of NextStep, SameStep"):
+        _make_vec(2, autoreset_mode="Disabled")
