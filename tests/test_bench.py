@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from agrl.bench import parse_args
@@ -54,3 +55,27 @@ def test_arguments():
     for bad in (["--batch-sizes", "0"], ["--modes", "jit"], ["--repeats", "-1"], ["--threads", "0"]):
         with pytest.raises(SystemExit):
             parse_args(bad)
+
+
+def test_stable_baselines3_sees_the_vector_env_through_the_adapter():
+    """python -m agrl.bench_peer's adapter: SB3's VecEnv contract (same-step reset, terminal_observation)."""
+    from stable_baselines3 import PPO
+
+    from agrl.bench_peer import make_sb3_vector_env
+
+    env = make_sb3_vector_env(4, compile=False, seed=0, task="fixed", max_decisions=2)
+    observations = env.reset()
+    assert observations.shape == (4, 23) and env.num_envs == 4
+    env.step_async(np.zeros(4, dtype=np.int64))
+    _, rewards, dones, infos = env.step_wait()
+    assert rewards.dtype == np.float32 and not dones.any() and infos == [{}] * 4
+    env.step_async(np.ones(4, dtype=np.int64))
+    observations, _, dones, infos = env.step_wait()
+    assert dones.all()  # the 2-decision budget
+    for row, info in enumerate(infos):  # the returned observation already starts the next episode
+        assert info["terminal_observation"].shape == (23,) and info["TimeLimit.truncated"] is False
+        assert not np.allclose(info["terminal_observation"], observations[row])
+    model = PPO("MlpPolicy", env, n_steps=4, batch_size=8, n_epochs=1, device="cpu", seed=0)
+    model.learn(total_timesteps=16)
+    assert model.num_timesteps == 16
+    env.close()
