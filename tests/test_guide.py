@@ -58,11 +58,11 @@ def test_batch_and_single_queries_answer_what_the_torchrl_actor_answers(states):
 
 
 def test_a_run_directory_and_a_checkpoint_file_load_the_same_agent(tmp_path):
-    from agrl.baselines import baseline_checkpoint_path
+    from agrl.baselines import BASELINE_FILE
 
     run = tmp_path / "run"
     (run / "checkpoints").mkdir(parents=True)
-    (run / "checkpoints" / "latest.pt").write_bytes(baseline_checkpoint_path().read_bytes())
+    (run / "checkpoints" / "latest.pt").write_bytes(BASELINE_FILE.read_bytes())
     aircraft, destination, last_action = random_raw_states(200, seed=1)
     expected = Guide.load("baseline").instruct_batch(aircraft, destination, last_action)
     for reference in (run, run / "checkpoints" / "latest.pt"):
