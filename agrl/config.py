@@ -270,6 +270,7 @@ class EvaluationConfig:
     interval: int = 10  # iterations between periodic evaluations during training (0 = never)
     interval_seconds: float = 0.0  # s of training between periodic evaluations; > 0 replaces `interval`
     periodic_episodes: int = 256  # episodes of each periodic evaluation
+    trajectory_image: bool = True  # log each periodic evaluation's trajectory figure to TensorBoard (Images)
 
     def __post_init__(self) -> None:
         _require(self.episodes >= 1, "eval.episodes", self.episodes, ">= 1")

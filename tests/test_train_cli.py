@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import csv
+import io
 import json
 import random
 import signal
 import subprocess
 import time
 
+import numpy as np
 import pytest
+from PIL import Image
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 from agrl.rl.checkpoint import load_checkpoint
@@ -87,6 +90,19 @@ def test_tiny_run_tensorboard_scalars(tiny_run):
     assert steps == [512 * i for i in range(1, tiny_run.iterations + 1)]
     assert [event.step for event in events.Scalars("eval/success_rate")] == [0, 1024, 2048]
     assert all(0.0 <= event.value <= 1.0 for event in events.Scalars("loss/clip_fraction"))
+
+
+def test_tiny_run_tensorboard_trajectory_images(tiny_run):
+    """Each periodic evaluation (before training, after iterations 2 and 4) logs its trajectory figure."""
+    events = EventAccumulator(str(tiny_run.run_dir / "tensorboard"), size_guidance={"images": 0})
+    events.Reload()
+    images = events.Images("eval/trajectories")
+    assert [image.step for image in images] == [0, 1024, 2048]
+    for image in images:
+        picture = np.asarray(Image.open(io.BytesIO(image.encoded_image_string)).convert("RGB"))
+        assert picture.shape == (image.height, image.width, 3) and min(image.height, image.width) >= 300
+        # A drawn figure (box, paths in outcome colours, legend), not a blank canvas.
+        assert len(np.unique(picture.reshape(-1, 3), axis=0)) > 50
 
 
 # ---------------------------------------------------------------------------- Ctrl-C
