@@ -389,6 +389,14 @@ def compose_config(*overrides: str, config_name: str = "config") -> DictConfig:
         return compose(config_name=config_name, overrides=list(overrides))
 
 
+def config_options(group: str) -> list[str]:
+    """The options of a config group as shipped in ``conf/`` (``config_options("task")`` -> fixed, ...)."""
+    from importlib.resources import files
+
+    return sorted(entry.name.removesuffix(".yaml") for entry in files("agrl.conf").joinpath(group).iterdir()
+                  if entry.name.endswith(".yaml"))
+
+
 def to_guidance_parameters(task: TaskConfig, reward: RewardConfig, simulation: SimulationConfig,
                            compile: bool | None = None) -> GuidanceParameters:
     """Map validated configs to the plain records of :mod:`agrl.envs`."""

@@ -17,10 +17,8 @@ generator), so from the same seed or scenario and the same actions the two envir
 the same episodes (``tests/envs/test_gym.py`` states the float tolerance: the batched env runs
 float32, this one float64). The many-environment form is :mod:`agrl.envs.gym_vector`
 (``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``). The task parameters are
-built from the same schema and defaults as ``python -m agrl.train``
-(:mod:`agrl.config`): ``conf/simulation/paper.yaml`` and ``conf/reward/*.yaml``
-equal the dataclass defaults, and the per-task destination defaults below are
-those of ``conf/task/*.yaml`` (a test composes ``conf/`` and compares).
+composed from ``conf/`` exactly as ``python -m agrl.train`` composes them (Hydra's compose API),
+so the YAML holds every default once.
 
 Episodes end with ``terminated=True`` on success, on leaving the airspace and
 when the decision budget is spent: the budget is part of the paper's MDP (it pays
@@ -30,6 +28,7 @@ when the decision budget is spent: the budget is part of the paper's MDP (it pay
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 import sys
@@ -40,7 +39,7 @@ import numpy as np
 import torch
 from gymnasium import spaces
 
-from agrl.config import RewardConfig, SimulationConfig, TaskConfig, to_guidance_parameters
+from agrl.config import ConfigError, compose_config, config_options, load_config, to_guidance_parameters
 from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.destinations import redraw_irregular_motion
 from agrl.core.initial_states import sample_initial_aircraft
@@ -53,14 +52,9 @@ from agrl.reference import reference_decision
 
 ENV_ID = "agrl/Guidance-v0"
 
-TASKS = tuple(kind.value for kind in MotionKind)
-REWARDS = ("none", "continuous", "position", "both")  # Table 3's four rows, as conf/reward/*.yaml
-#: Destination defaults of conf/task/*.yaml (``speed``/``radius`` are null at the root there).
-TASK_DEFAULTS: dict[str, dict[str, float]] = {
-    "fixed": {},
-    "uniform": {"speed": 50.0},
-    "curved": {"speed": 20.0, "radius": 1_000.0, "turn_direction": 1},
-    "irregular": {},
+#: The destination parameters each task takes (their defaults live in conf/task/*.yaml, nowhere else).
+TASK_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "fixed": (), "uniform": ("speed",), "curved": ("speed", "radius", "turn_direction"), "irregular": (),
 }
 
 
@@ -89,51 +83,46 @@ def guidance_parameters(
 ) -> GuidanceParameters:
     """The :class:`GuidanceParameters` that ``python -m agrl.train task=... reward=...`` would use.
 
-    Raises ``ValueError`` (one line) naming a bad value and what is allowed.
+    Composed from ``conf/`` with Hydra's compose API (:func:`agrl.config.compose_config`), so every
+    default is the YAML's own. Raises ``ValueError`` (one line) naming a bad value and what is allowed.
     """
-    if task not in TASKS:
-        _fail("task", task, f"one of {', '.join(TASKS)}")
-    if reward not in REWARDS:
-        _fail("reward", reward, f"one of {', '.join(REWARDS)}")
+    tasks, rewards = config_options("task"), config_options("reward")
+    if task not in tasks:
+        _fail("task", task, f"one of {', '.join(tasks)}")
+    if reward not in rewards:
+        _fail("reward", reward, f"one of {', '.join(rewards)}")
     if not isinstance(compile, bool):
         _fail("compile", compile, "True or False")
-    defaults = TASK_DEFAULTS[task]
+    overrides = [f"task={task}", f"reward={reward}", f"simulation.compile={str(compile).lower()}"]
     given = {"speed": speed, "radius": radius, "turn_direction": turn_direction}
     for name, value in given.items():
-        if value is not None and name not in defaults:
-            users = [t for t, d in TASK_DEFAULTS.items() if name in d]
+        if value is not None and name not in TASK_PARAMETERS.get(task, ()):
+            users = [t for t, names in TASK_PARAMETERS.items() if name in names]
             _fail(name, value, f"task={task} has no destination {name} (only task={' or '.join(users)})")
-    values: dict[str, Any] = {}
-    if "speed" in defaults:
-        values["speed"] = _finite_positive(
-            "speed", defaults["speed"] if speed is None else speed, task, "destination speed in m/s"
-        )
-    if "radius" in defaults:
-        values["radius"] = _finite_positive(
-            "radius", defaults["radius"] if radius is None else radius, task, "turning radius in m"
-        )
-    if "turn_direction" in defaults:
-        direction = defaults["turn_direction"] if turn_direction is None else turn_direction
-        if isinstance(direction, bool) or direction not in (-1, 1):
+    if speed is not None:
+        overrides.append(f"speed={_finite_positive('speed', speed, task, 'destination speed in m/s')!r}")
+    if radius is not None:
+        overrides.append(f"radius={_finite_positive('radius', radius, task, 'turning radius in m')!r}")
+    if turn_direction is not None:
+        if isinstance(turn_direction, bool) or turn_direction not in (-1, 1):
             _fail("turn_direction", turn_direction, "+1 (counter-clockwise) or -1 (clockwise)")
-        values["turn_direction"] = int(direction)
-    task_config = TaskConfig(name=task, **values)  # the schema's own checks run here, as under Hydra
-
-    budget: dict[str, int] = {}
+        overrides.append(f"task.turn_direction={int(turn_direction)}")
     if max_decisions is not None:
         integral = isinstance(max_decisions, (int, np.integer)) and not isinstance(max_decisions, bool)
         if not integral or max_decisions < 1:
             _fail("max_decisions", max_decisions, "an integer >= 1 (decisions of 3 s per episode)")
-        budget["max_decisions"] = int(max_decisions)
-    simulation = SimulationConfig(compile=compile, **budget)
+        overrides.append(f"simulation.max_decisions={int(max_decisions)}")
+    return _composed_parameters(tuple(overrides))
 
-    # conf/reward/{none,continuous,position}.yaml inherit reward/both and switch the two shaping terms.
-    reward_config = RewardConfig(
-        name=reward,
-        use_continuous_action=reward in ("continuous", "both"),
-        use_position=reward in ("position", "both"),
-    )
-    return to_guidance_parameters(task_config, reward_config, simulation, compile=compile)
+
+@functools.lru_cache(maxsize=64)
+def _composed_parameters(overrides: tuple[str, ...]) -> GuidanceParameters:
+    # Composing takes a few tenths of a second; vector envs and SB3's make_vec_env ask for the same task often.
+    try:
+        config = load_config(compose_config(*overrides))
+    except ConfigError as error:
+        raise ValueError(str(error)) from None
+    return to_guidance_parameters(config.task, config.reward, config.simulation)
 
 
 def observation_bounds(params: GuidanceParameters) -> tuple[np.ndarray, np.ndarray]:

@@ -296,7 +296,7 @@ def test_returned_data_is_fresh():
 @pytest.mark.parametrize(
     ("kwargs", "fragment"),
     [
-        ({"task": "circle"}, "task='circle' is not allowed: one of fixed, uniform, curved, irregular"),
+        ({"task": "circle"}, "task='circle' is not allowed: one of curved, fixed, irregular, uniform"),
         ({"task": "uniform", "speed": -5.0}, "speed=-5.0 is not allowed"),
         ({"task": "uniform", "speed": "fast"}, "speed='fast' is not allowed"),
         ({"task": "uniform", "speed": float("nan")}, "speed=nan is not allowed"),
@@ -306,7 +306,7 @@ def test_returned_data_is_fresh():
         ({"task": "curved", "turn_direction": 2}, "turn_direction=2 is not allowed: +1"),
         ({"max_decisions": 0}, "max_decisions=0 is not allowed: an integer >= 1"),
         ({"max_decisions": 2.5}, "max_decisions=2.5 is not allowed"),
-        ({"reward": "shaped"}, "reward='shaped' is not allowed: one of none, continuous, position, both"),
+        ({"reward": "shaped"}, "reward='shaped' is not allowed: one of both, continuous, none, position, switch"),
         ({"compile": "yes"}, "compile='yes' is not allowed"),
     ],
 )
