@@ -208,7 +208,7 @@ def bench_gym_vector_env(params_task: dict, batch: int, compiled: bool, device: 
     import gymnasium
     import numpy as np
 
-    import agrl  # noqa: F401 - registers agrl/Guidance-v0
+    import agrl  # registers agrl/Guidance-v0
 
     if compiled:
         torch._dynamo.reset()
@@ -233,7 +233,7 @@ def bench_gym_env(params_task: dict, repeats: int, min_seconds: float) -> dict:
     """Decisions per second of the single gymnasium env (random maneuvers, reset when an episode ends)."""
     import gymnasium
 
-    import agrl  # noqa: F401 - registers agrl/Guidance-v0
+    import agrl  # registers agrl/Guidance-v0
 
     env = gymnasium.make(agrl.GYM_ENV_ID, **params_task)
     env.reset(seed=0)

@@ -14,7 +14,7 @@ from agrl.export import main
 from agrl.guide import Guide, GuideError
 
 STATES = 10_000
-SINGLE_QUERIES = 1_000
+SINGLE_QUERIES = 500
 
 
 @pytest.fixture(scope="module")
