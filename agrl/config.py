@@ -389,6 +389,24 @@ def compose_config(*overrides: str, config_name: str = "config") -> DictConfig:
         return compose(config_name=config_name, overrides=list(overrides))
 
 
+def validated_section(schema, values: dict) -> Any:
+    """One config section (e.g. a checkpoint's saved ``task``) checked against its schema, as a dataclass."""
+    try:
+        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema), values))
+    except Exception as error:
+        cause = error
+        while cause is not None and not isinstance(cause, ConfigError):
+            cause = cause.__cause__ or cause.__context__
+        raise (cause or ConfigError(str(error).splitlines()[0])) from None
+
+
+def saved_guidance_parameters(saved: dict, task: TaskConfig | None = None) -> GuidanceParameters:
+    """The task a checkpoint's saved config describes (or ``task`` instead of its own), validated."""
+    task = task if task is not None else validated_section(TaskConfig, saved["task"])
+    return to_guidance_parameters(task, validated_section(RewardConfig, saved["reward"]),
+                                  validated_section(SimulationConfig, saved["simulation"]))
+
+
 def config_options(group: str) -> list[str]:
     """The options of a config group as shipped in ``conf/`` (``config_options("task")`` -> fixed, ...)."""
     from importlib.resources import files

@@ -84,12 +84,11 @@ def _from_metadata(text: str, path: Path) -> tuple[Airspace, AircraftLimits, str
 
 def load_policy(reference: str | Path = "baseline") -> tuple[GuidePolicy, str, str]:
     """(:class:`GuidePolicy`, activation name, checkpoint path) of ``baseline``, a checkpoint or a run directory."""
-    from agrl.config import RewardConfig, SimulationConfig, TaskConfig, to_guidance_parameters
-    from agrl.evaluate import _structured, load_agent
+    from agrl.config import saved_guidance_parameters
+    from agrl.evaluate import load_agent
 
     actor, saved, path = load_agent(str(reference))
-    params = to_guidance_parameters(_structured(TaskConfig, saved["task"]), _structured(RewardConfig, saved["reward"]),
-                                    _structured(SimulationConfig, saved["simulation"]))
+    params = saved_guidance_parameters(saved)
     networks = [module for module in actor.modules() if isinstance(module, nn.Sequential)]
     policy = GuidePolicy(networks[0], params.simulation.airspace, params.simulation.limits).eval()
     return policy, saved["agent"]["activation"], str(path)

@@ -8,9 +8,9 @@ import torch
 from tensordict import TensorDict
 from torchrl.envs import ExplorationType, set_exploration_type
 
-from agrl.config import RewardConfig, SimulationConfig, TaskConfig, to_guidance_parameters
+from agrl.config import saved_guidance_parameters
 from agrl.core.observation import policy_observation
-from agrl.evaluate import _structured, load_agent
+from agrl.evaluate import load_agent
 from agrl.guide import Guide, GuideError
 
 STATES = 10_000
@@ -30,8 +30,7 @@ def random_raw_states(count: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray
 def actor_maneuvers(reference: str, aircraft, destination, last_action) -> np.ndarray:
     """What the TorchRL actor (make_actor, deterministic mode) answers, the observation from agrl.core."""
     actor, saved, _ = load_agent(reference)
-    params = to_guidance_parameters(_structured(TaskConfig, saved["task"]), _structured(RewardConfig, saved["reward"]),
-                                    _structured(SimulationConfig, saved["simulation"])).simulation
+    params = saved_guidance_parameters(saved).simulation
     observation = policy_observation(torch.from_numpy(aircraft), torch.from_numpy(destination),
                                      torch.from_numpy(last_action), params.airspace, params.limits)
     with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):

@@ -109,6 +109,11 @@ class GuidanceEnv(EnvBase):
     def _set_seed(self, seed: int | None) -> None:
         self._generator.manual_seed(int(seed) if seed is not None else 0)
 
+    @property
+    def generator(self) -> torch.Generator:
+        """The env's own random stream: initial states and the irregular destination's redraws."""
+        return self._generator
+
     def generator_state(self) -> torch.Tensor:
         """The state of the env's own random stream (initial states, irregular motion), for exact resume."""
         return self._generator.get_state()

@@ -262,9 +262,9 @@ class GuidanceGymEnv(gymnasium.Env):
                 state = self._scenario(options)["scenario"]
             else:  # GuidanceEnv._reset's draws, in its order, without its TensorDict and torch observation
                 params = self.params
-                speed, turn_rate = params.destination.initial_motion(1, self.env._generator, self.env.device)
+                speed, turn_rate = params.destination.initial_motion(1, self.env.generator, self.env.device)
                 start = torch.tensor([params.destination.start])
-                aircraft = sample_initial_aircraft(1, params.initial_state, start, self.env._generator)
+                aircraft = sample_initial_aircraft(1, params.initial_state, start, self.env.generator)
                 state = {"aircraft_state": aircraft, "destination_state": start, "destination_speed": speed,
                          "destination_turn_rate": turn_rate}
         self._aircraft = tuple(state["aircraft_state"][0].tolist())
@@ -297,7 +297,7 @@ class GuidanceGymEnv(gymnasium.Env):
             motion = self.params.destination
             speed, turn_rate = redraw_irregular_motion(
                 torch.tensor([self._destination_speed]), torch.tensor([self._destination_turn_rate]),
-                motion.change_probability, motion.speed_range, motion.max_turn_rate, self.env._generator,
+                motion.change_probability, motion.speed_range, motion.max_turn_rate, self.env.generator,
             )
             self._destination_speed, self._destination_turn_rate = float(speed[0]), float(turn_rate[0])
         potential_before = self._potential(False)
