@@ -35,11 +35,13 @@ def _resume_config(cfg: DictConfig, reference: str) -> tuple[DictConfig, dict, P
     payload["_path"] = str(path)
     # The composed config carries the typed group schemas; the run's saved values go on top.
     saved = OmegaConf.merge(cfg, payload["config"])
-    overrides = [
-        override
-        for override in HydraConfig.get().overrides.task
-        if override.split("=")[0].lstrip("+~").startswith(RESUMABLE_OVERRIDES)
-    ]
+    given = [(override.split("=")[0].lstrip("+~"), override) for override in HydraConfig.get().overrides.task]
+    refused = [override for key, override in given if key != "resume" and not key.startswith(RESUMABLE_OVERRIDES)]
+    if refused:
+        raise ConfigError(f"{refused[0]} is not allowed with resume: a resumed run keeps its saved config; "
+                          f"only {', '.join(key + ('*' if key.endswith('.') else '') for key in RESUMABLE_OVERRIDES)}"
+                          " may be given")
+    overrides = [override for key, override in given if key.startswith(RESUMABLE_OVERRIDES)]
     saved = OmegaConf.merge(saved, OmegaConf.from_dotlist(overrides))
     saved.resume = str(reference)
     # A checkpoint inside a run directory continues there (even if the directory was moved).

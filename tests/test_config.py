@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 from hydra import compose, initialize_config_dir
+from hydra.errors import ConfigCompositionException, MissingConfigException
+from omegaconf.errors import ValidationError
 
 from agrl.config import ConfigError, TaskConfig, load_config, task_label, to_guidance_parameters
 from agrl.envs import MotionKind
@@ -62,8 +64,11 @@ def test_switch_cost_is_off_in_the_papers_variants_and_reaches_the_env():
 
 
 def test_unknown_task_names_the_value():
-    with pytest.raises(Exception, match="bogus"):
+    with pytest.raises(MissingConfigException) as info:
         load("task=bogus")
+    lines = str(info.value).splitlines()
+    assert lines[0] == "In 'config': Could not find 'task/bogus'"
+    assert lines[2:7] == ["Available options in 'task':", "\tcurved", "\tfixed", "\tirregular", "\tuniform"]
 
 
 def test_unknown_task_name_in_group_is_a_config_error():
@@ -84,8 +89,11 @@ def test_zero_curved_radius_fails():
 
 
 def test_wrong_type_names_the_value():
-    with pytest.raises(Exception, match="abc"):
+    with pytest.raises(ConfigCompositionException, match=r"^Error merging override speed=abc$") as info:
         load("task=uniform", "speed=abc")
+    cause = info.value.__cause__
+    assert isinstance(cause, ValidationError)
+    assert str(cause).splitlines()[0] == "Value 'abc' of type 'str' could not be converted to Float"
 
 
 @pytest.mark.parametrize(

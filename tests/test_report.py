@@ -77,3 +77,40 @@ def test_the_final_evaluation_is_the_last_point_when_no_periodic_one_got_there(t
     # Training success has no final point: it is what the training episodes measured.
     assert run_time_to_reach(runs["late"], 0.95, "train/success_rate") == (1, 120.0)
     assert run_time_to_reach(runs["never"], 0.95, "train/success_rate") is None
+
+
+# ---------------------------------------------------------------------------- Table 3
+def make_reward_run(root: Path, name: str, reward: str, evaluation: dict, curve: list[tuple[float, float]]) -> None:
+    """A finished fixed-task run of one reward setting: eval.json as the trainer writes it, metrics.csv of
+    (wall seconds, periodic evaluation success)."""
+    run = root / name
+    (run / ".hydra").mkdir(parents=True)
+    (run / "eval").mkdir()
+    config = {"task": {"name": "fixed"}, "reward": {"name": reward}, "method": {"name": "scratch"}, "seed": 0}
+    OmegaConf.save(OmegaConf.create(config), run / ".hydra" / "config.yaml")
+    (run / "eval" / "eval.json").write_text(json.dumps(evaluation))
+    rows = ["iteration,frames,wall_time,eval/success_rate,train/success_rate"]
+    rows += [f"{i},{i * 100},{seconds},{success},{success}" for i, (seconds, success) in enumerate(curve)]
+    (run / "metrics.csv").write_text("\n".join(rows) + "\n")
+
+
+def test_table3_rows_are_mean_and_spread_over_seeds_beside_the_paper(tmp_path, capsys):
+    def evaluation(success, instructions, ms):
+        return {"success_rate": success, "instructions_per_episode": instructions, "ms_per_instruction": ms}
+
+    # Two seeds with both shaping terms: 95 % after 1 and 3 minutes (iteration 1 each), 99 % only in the first.
+    make_reward_run(tmp_path, "both0", "both", evaluation(0.99, 7.0, 0.3), [(0, 0.1), (60, 0.96), (120, 0.995)])
+    make_reward_run(tmp_path, "both1", "both", evaluation(0.97, 9.0, 0.5), [(0, 0.1), (180, 0.97)])
+    # One seed without shaping, which never reaches 95 %.
+    make_reward_run(tmp_path, "none0", "none", evaluation(0.5, 11.0, 0.25), [(0, 0.0), (60, 0.5)])
+    assert main(["table3", str(tmp_path)]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].startswith("| Reward | Seeds | Success rate | Instructions / episode | ms / instruction |")
+    rows = {line.split(" | ")[0].lstrip("| "): line.strip("| ").split(" | ") for line in lines[2:]}
+    assert list(rows) == ["none", "both"]  # the paper's row order; settings without runs are left out
+    # Means and sample standard deviations by hand: success (99, 97) -> 98.0 ± sqrt(2) = 1.4; instructions
+    # (7, 9) -> 8.00 ± 1.41; latency (0.3, 0.5) -> 0.40 ± 0.14; minutes to 95 % (1, 3) -> 2.0 ± 1.4.
+    assert rows["both"] == ["both", "2", "98.0 ± 1.4 %", "8.00 ± 1.41", "0.40 ± 0.14", "1 ± 0 (2/2)", "2.0 ± 1.4",
+                            "2 (1/2)", "2.0", "99.5 %, 7.22, 2.91 ms"]
+    assert rows["none"] == ["none", "1", "50.0 %", "11.00", "0.25", "not reached (0/1)", "not reached",
+                            "not reached (0/1)", "not reached", "98.6 %, 11.31, 2.98 ms"]

@@ -15,7 +15,7 @@ import pytest
 from PIL import Image
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-from agrl.rl.checkpoint import load_checkpoint
+from agrl.rl.checkpoint import CheckpointError, load_checkpoint
 from agrl.rl.trainer import Trainer
 
 TRAINING_STATE = ("actor", "critic", "optimizer", "counters", "carrier", "rng", "config")
@@ -28,6 +28,21 @@ def read_csv(path):
 
 def error_lines(stderr: str) -> list[str]:
     return [line for line in stderr.splitlines() if line.strip()]
+
+
+def periodic_success_of(checkpoint) -> float:
+    """Success of a training checkpoint's actor on its run's periodic evaluation set (eval.periodic_episodes
+    episodes from the evaluation seed, seed + 1000003), evaluated here from the saved actor and config."""
+    from agrl.config import RewardConfig, SimulationConfig, TaskConfig, to_guidance_parameters
+    from agrl.envs.guidance import GuidanceEnv
+    from agrl.evaluate import _structured, load_agent
+    from agrl.rl.evaluation import run_episodes, summarise
+
+    actor, saved, _ = load_agent(str(checkpoint))
+    params = to_guidance_parameters(_structured(TaskConfig, saved["task"]), _structured(RewardConfig, saved["reward"]),
+                                    _structured(SimulationConfig, saved["simulation"]), compile=False)
+    env = GuidanceEnv(params, num_envs=saved["eval"]["periodic_episodes"], seed=saved["seed"] + 1_000_003)
+    return summarise(run_episodes(env, actor))["success_rate"]
 
 
 # ---------------------------------------------------------------------------- the shared tiny run
@@ -49,7 +64,8 @@ def test_tiny_run_writes_checkpoints_metrics_and_evaluation(tiny_run):
     assert rows[0]["train/success_rate"] == "" and float(rows[0]["wall_time"]) == 0.0
     # Periodic evaluation every 2 iterations (eval.interval=2), training success every iteration.
     assert [row["eval/success_rate"] != "" for row in rows] == [True, False, True, False, True]
-    assert all(0.0 <= float(row["train/success_rate"]) <= 1.0 for row in rows[1:])
+    # The last periodic evaluation is the final actor's on the fixed periodic set: evaluate it again here.
+    assert float(rows[-1]["eval/success_rate"]) == periodic_success_of(run / "checkpoints" / "latest.pt")
 
     assert (run / "eval" / "trajectories.png").stat().st_size > 1000
     episodes = read_csv(run / "eval" / "episodes.csv")
@@ -89,7 +105,20 @@ def test_tiny_run_tensorboard_scalars(tiny_run):
     steps = [event.step for event in events.Scalars("time/decisions_per_second")]
     assert steps == [512 * i for i in range(1, tiny_run.iterations + 1)]
     assert [event.step for event in events.Scalars("eval/success_rate")] == [0, 1024, 2048]
-    assert all(0.0 <= event.value <= 1.0 for event in events.Scalars("loss/clip_fraction"))
+    # Training success is a count of successful episodes over the episodes that ended in the iteration.
+    episodes = [event.value for event in events.Scalars("train/episodes")]
+    successes = [rate.value * count for rate, count in zip(events.Scalars("train/success_rate"), episodes,
+                                                             strict=True)]
+    assert all(count >= 1 and count == int(count) for count in episodes), episodes
+    assert all(abs(value - round(value)) < 1e-4 and 0 <= round(value) <= count
+               for value, count in zip(successes, episodes, strict=True)), (successes, episodes)
+    rows = read_csv(tiny_run.run_dir / "metrics.csv")[1:]
+    assert [float(row["train/success_rate"]) for row in rows] == pytest.approx(
+        [event.value for event in events.Scalars("train/success_rate")], rel=1e-6)
+    # The clip fraction of an iteration is the mean over its 4 minibatches of 128 rows (512 decisions, one
+    # epoch) of a 0/1 flag per row: a whole number of 512ths.
+    for event in events.Scalars("loss/clip_fraction"):
+        assert event.value * 512 == round(event.value * 512) and 0 <= event.value <= 1, event.value
 
 
 def test_tiny_run_tensorboard_trajectory_images(tiny_run):
@@ -202,3 +231,86 @@ def test_resume_from_corrupt_checkpoint_exits_2_naming_the_file(bad_invocations)
     assert len(lines) == 1, lines
     assert lines[0].startswith("agrl.train: error:")
     assert str(bad_invocations["bad_file"]) in lines[0]
+
+
+# ---------------------------------------------------------------------------- bad inputs of runs that start
+@pytest.fixture(scope="module")
+def bad_runs(run_cli, tiny_run, tiny_args, tmp_path_factory):
+    """Invocations that get past the config's schema and fail when the run starts, run at once."""
+    import shutil
+
+    import torch
+
+    from agrl.rl.checkpoint import save_checkpoint
+
+    directory = tmp_path_factory.mktemp("bad_runs")
+    # A baseline whose critic holds a NaN: the value targets and hence the first PPO loss are NaN.
+    payload = load_checkpoint(tiny_run.run_dir / "checkpoints" / "latest.pt")
+    critic = {key: value.clone() for key, value in payload["critic"].items()}
+    next(iter(critic.values())).view(-1)[0] = float("nan")
+    nan_baseline = save_checkpoint({**payload, "critic": critic}, directory / "nan_critic.pt")
+    assert not torch.isfinite(next(iter(critic.values()))).all()
+    # A copy of the shared tiny run to resume (the shared one stays read-only).
+    resumable = directory / "resumable"
+    shutil.copytree(tiny_run.run_dir, resumable)
+    missing = directory / "missing.pt"
+    jobs = {
+        "diverges": ("train", *tiny_args(), "method=pretrained", f"method.baseline={nan_baseline}",
+                     f"hydra.run.dir={directory / 'diverges'}"),
+        "reuse-without-baseline": ("train", *tiny_args(), "method=reuse", "method.baseline=null",
+                                   f"hydra.run.dir={directory / 'no_baseline'}"),
+        "reuse-missing-baseline": ("train", *tiny_args(), "method=reuse", f"method.baseline={missing}",
+                                   f"hydra.run.dir={directory / 'missing_baseline'}"),
+        "stride-over-budget": ("train", *tiny_args(), "method=reuse", "method.candidate_stride=31",
+                               f"hydra.run.dir={directory / 'stride'}"),
+        "resume-other-num-envs": ("train", f"resume={resumable}", "ppo.num_envs=64",
+                                  f"hydra.run.dir={directory / 'resume_hydra'}"),
+    }
+    return {"directory": directory, "missing": missing, "resumable": resumable, **run_cli.batch(jobs)}
+
+
+def single_error_line(result, code: int) -> str:
+    assert result.returncode == code, result.stderr[-3000:]
+    lines = error_lines(result.stderr)
+    assert len(lines) == 1, lines
+    return lines[0]
+
+
+def test_divergence_exits_3_with_the_iteration_and_the_checkpoint_folder(bad_runs):
+    line = single_error_line(bad_runs["diverges"], 3)
+    checkpoints = bad_runs["directory"] / "diverges" / "checkpoints"
+    assert line == (f"agrl.train: error: non-finite loss (nan) at iteration 1, update 1; "
+                    f"last good checkpoint kept in {checkpoints}")
+
+
+def test_reuse_without_a_baseline_is_one_line(bad_runs):
+    line = single_error_line(bad_runs["reuse-without-baseline"], 2)
+    assert line == ("agrl.train: error: method.baseline=None is not allowed: "
+                    "method=reuse needs a baseline checkpoint (a path, or 'baseline')")
+    line = single_error_line(bad_runs["reuse-missing-baseline"], 2)
+    assert line == f"agrl.train: error: {bad_runs['missing']}: no such checkpoint file"
+
+
+def test_candidate_stride_beyond_the_decision_budget_is_one_line(bad_runs):
+    # tiny_args: simulation.max_decisions=30, so t_n = 31 is never reached.
+    line = single_error_line(bad_runs["stride-over-budget"], 2)
+    assert line == "agrl.train: error: candidate_stride=31 is not allowed: between 1 and max_decisions=30"
+
+
+def test_resuming_with_another_num_envs_is_refused_and_leaves_the_run_alone(bad_runs, tiny_run):
+    line = single_error_line(bad_runs["resume-other-num-envs"], 2)
+    assert line == ("agrl.train: error: ppo.num_envs=64 is not allowed with resume: a resumed run keeps its "
+                    "saved config; only ppo.total_frames, ppo.max_minutes, target_success, progress, device, "
+                    "checkpoint_interval, eval.* may be given")
+    latest = bad_runs["resumable"] / "checkpoints" / "latest.pt"
+    assert latest.read_bytes() == (tiny_run.run_dir / "checkpoints" / "latest.pt").read_bytes()
+
+
+@pytest.mark.usefixtures("torch_one_thread")
+def test_a_checkpoint_of_another_num_envs_is_refused_by_the_trainer(tiny_run, compose_train, tiny_args, tmp_path):
+    latest = tiny_run.run_dir / "checkpoints" / "latest.pt"
+    payload = {**load_checkpoint(latest), "_path": str(latest)}
+    config = compose_train(*tiny_args({"ppo.num_envs": 64}))
+    with pytest.raises(CheckpointError) as raised:
+        Trainer(config, tmp_path / "run", resume_payload=payload)
+    assert str(raised.value) == f"{latest}: checkpoint has 32 environments, this run has 64"

@@ -8,8 +8,10 @@ import math
 
 import pytest
 import torch
+from torchrl.envs.utils import step_mdp
 
 from agrl.config import to_guidance_parameters
+from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import GuidanceEnv
 from agrl.rl.evaluation import (
@@ -149,6 +151,85 @@ def test_run_episodes_records_are_consistent(params, actor):
     assert sum(summary["outcomes"].values()) == 16
 
 
-def test_instruction_latency_is_a_positive_time(params, actor):
+def test_counters_match_a_hand_count_of_the_replayed_actions(params, actor):
+    """Record the actions of an evaluation, replay them through a fresh env, count decisions and maneuver
+    changes by hand (the aircraft starts in steady flight, action 0) and compare with the records."""
+    assert MANEUVER_NAMES[0] == "steady_flight"
+    actions = []
+
+    def recording_actor(td):
+        td = actor(td)
+        actions.append(td["action"].clone())
+        return td
+
+    result = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), recording_actor)
+    env = GuidanceEnv(params, num_envs=16, seed=5)
+    td = env.reset()
+    decisions = [None] * 16
+    outcomes, env_counts = [None] * 16, [None] * 16
+    for step, action in enumerate(actions):
+        td["action"] = action
+        td = env.step(td)
+        for row in range(16):
+            if decisions[row] is None and bool(td["next", "done"][row]):
+                decisions[row] = step + 1
+                outcomes[row] = int(td["next", "outcome"][row])
+                env_counts[row] = (int(td["next", "step_count"][row]), int(td["next", "instruction_count"][row]))
+        td = step_mdp(td)
+    flown = torch.stack(actions, dim=1)  # (episodes, steps)
+    instructions = []
+    for row in range(16):
+        previous, changes = 0, 0
+        for action in flown[row, : decisions[row]].tolist():
+            changes += action != previous
+            previous = action
+        instructions.append(changes)
+    assert result.decisions.tolist() == decisions
+    assert result.instructions.tolist() == instructions
+    assert result.outcome.tolist() == outcomes
+    assert env_counts == list(zip(decisions, instructions, strict=True))
+    # The hand count is not trivial: some episodes change maneuver, some decisions keep it.
+    assert 0 < sum(instructions) < sum(decisions)
+
+
+class SteppingClock:
+    """A stand-in for the ``time`` module whose ``perf_counter`` advances by given durations per query."""
+
+    def __init__(self, durations: list[float]):
+        self.now, self.calls, self.durations = 0.0, 0, durations
+
+    def perf_counter(self) -> float:
+        # Calls alternate: start of query i, end of query i (which is i's duration later).
+        if self.calls % 2:
+            self.now += self.durations[self.calls // 2]
+        else:
+            self.now += 1.0  # time between queries must not count
+        self.calls += 1
+        return self.now
+
+
+def test_instruction_latency_is_the_median_of_the_timed_single_aircraft_queries(params, actor, monkeypatch):
+    import agrl.rl.evaluation as evaluation
+
+    queries, warm_up = 21, 10
+    # Distinct durations (s), shuffled; the warm-up queries are slow and must be left out.
+    durations = [5.0] * warm_up + [(8 * i % queries + 1) * 1e-4 for i in range(queries)]
+    clock = SteppingClock(durations)
+    batch_sizes = []
+
+    def counting_actor(td):
+        batch_sizes.append(tuple(td.batch_size))
+        return actor(td)
+
+    monkeypatch.setattr(evaluation, "time", clock)
+    latency = instruction_latency_ms(GuidanceEnv(params, num_envs=4, seed=0), counting_actor, queries=queries)
+    expected = 1000.0 * sorted(durations[warm_up:])[queries // 2]  # the median of 21 values: the 11th
+    assert latency == pytest.approx(expected, rel=1e-9)
+    assert expected == pytest.approx(1.1, rel=1e-9)  # 11 x 0.1 ms
+    assert clock.calls == 2 * (queries + warm_up)
+    assert batch_sizes == [(1,)] * (queries + warm_up)  # one aircraft per query
+
+
+def test_instruction_latency_of_a_real_query_is_a_finite_positive_time(params, actor):
     latency = instruction_latency_ms(GuidanceEnv(params, num_envs=4, seed=0), actor, queries=20)
-    assert 0.0 < latency < 1000.0
+    assert math.isfinite(latency) and latency > 0.0

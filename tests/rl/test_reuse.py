@@ -148,6 +148,7 @@ class Relabelled:
         self.out = self.transform.relabel(self.flat)
         assert len(collected.received) == 1, "ppo_targets is called once, on all re-played episodes"
         self.trajectories = collected.received[0]
+        self.valid = collected.received_valid  # kept here: later relabel calls on `collected` overwrite it
         self.lengths = episode_lengths(self.trajectories)
         self.starts = starts_of(self.flat)
 
@@ -325,7 +326,7 @@ def test_success_ends_each_relabelled_episode_and_gae_does_not_look_past_it(rela
 def test_ppo_targets_on_valid_rows_equal_gae_on_the_whole_table(relabelled):
     """The critic runs on the valid rows only; the advantages equal TorchRL's GAE run on the padded table."""
     collected = relabelled.collected
-    trajectories, valid = relabelled.trajectories.clone(), collected.received_valid
+    trajectories, valid = relabelled.trajectories.clone(), relabelled.valid
     assert bool(valid.any()) and not bool(valid.all()), "the table holds padding"
     masked = relabelled_ppo_targets(trajectories.clone(), valid, critic=collected.critic,
                                     advantage=collected.replay_gae)

@@ -1,0 +1,59 @@
+"""The trainer's stops other than the frame budget: ``target_success`` and ``ppo.max_minutes``."""
+
+from __future__ import annotations
+
+import csv
+import logging
+
+import pytest
+
+from agrl.rl.trainer import Trainer
+
+pytestmark = pytest.mark.usefixtures("torch_one_thread")
+
+BUDGET_ITERATIONS = 10
+
+
+def read_csv(path):
+    with path.open(newline="") as file:
+        return list(csv.DictReader(file))
+
+
+def stop_reasons(caplog) -> list[str]:
+    return [record.getMessage() for record in caplog.records if record.getMessage().startswith("training stopped:")]
+
+
+def test_target_success_stops_at_the_first_periodic_evaluation_that_reaches_it(tmp_path, compose_train, tiny_args,
+                                                                               caplog):
+    # The shipped baseline succeeds in some of these short episodes from the start; a target of one success
+    # in 32 periodic episodes is met early, long before the 10-iteration frame budget.
+    target = 1 / 32
+    config = compose_train(*tiny_args({"ppo.total_frames": BUDGET_ITERATIONS * 512, "eval.interval": 1,
+                                       "eval.periodic_episodes": 32, "target_success": target}), "method=pretrained")
+    caplog.set_level(logging.INFO, logger="agrl.train")
+    summary = Trainer(config, tmp_path / "run").train()
+    rows = read_csv(tmp_path / "run" / "metrics.csv")
+    evaluations = [float(row["eval/success_rate"]) for row in rows[1:]]  # row 0: before training, never a stop
+    first = next(index for index, success in enumerate(evaluations) if success >= target) + 1
+    assert first < BUDGET_ITERATIONS
+    assert int(rows[-1]["iteration"]) == summary["iterations"] == first
+    assert stop_reasons(caplog) == [f"training stopped: periodic evaluation reached target_success={target}"]
+
+
+def test_target_success_0_never_stops_a_run(tmp_path, compose_train, tiny_args, caplog):
+    config = compose_train(*tiny_args({"ppo.total_frames": 2 * 512, "eval.interval": 1, "target_success": 0}),
+                           "method=pretrained")
+    caplog.set_level(logging.INFO, logger="agrl.train")
+    assert Trainer(config, tmp_path / "run").train()["iterations"] == 2
+    assert stop_reasons(caplog) == ["training stopped: reached ppo.total_frames=1024"]
+
+
+def test_max_minutes_stops_after_the_iteration_that_passes_it(tmp_path, compose_train, tiny_args, caplog):
+    # 6 ms of training: the first iteration takes longer, so the run stops after it.
+    config = compose_train(*tiny_args({"ppo.total_frames": BUDGET_ITERATIONS * 512, "ppo.max_minutes": 0.0001}))
+    caplog.set_level(logging.INFO, logger="agrl.train")
+    trainer = Trainer(config, tmp_path / "run")
+    summary = trainer.train()
+    assert summary["iterations"] == 1 and trainer.counters.frames == 512
+    assert trainer.counters.wall_time >= 60 * 0.0001
+    assert stop_reasons(caplog) == ["training stopped: reached ppo.max_minutes=0.0001"]

@@ -1,0 +1,71 @@
+"""``python -m agrl.export SOURCE DESTINATION --evaluation eval.json`` (the checkpoint format, the default): the
+slim copy a run is shared as and the shipped baseline was made with. The other formats: tests/test_export.py."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import torch
+from torch.serialization import get_unsafe_globals_in_checkpoint
+
+from agrl.rl.checkpoint import load_checkpoint
+from agrl.rl.trainer import Trainer
+
+pytestmark = pytest.mark.usefixtures("torch_one_thread")
+
+def assert_same_tensors(a: dict, b: dict, where: str) -> None:
+    assert a.keys() == b.keys(), where
+    for key in a:
+        assert torch.equal(a[key], b[key]), f"{where}[{key}]"
+
+
+SLIM_KEYS = {"format_version", "versions", "actor", "critic", "config", "config_yaml", "counters", "exported_from",
+             "evaluation"}
+
+
+@pytest.fixture(scope="module")
+def exported(tiny_run, run_cli, tmp_path_factory):
+    directory = tmp_path_factory.mktemp("export")
+    jobs = {
+        "run-dir": ("export", str(tiny_run.run_dir), str(directory / "slim.pt"),
+                    "--evaluation", str(tiny_run.run_dir / "eval" / "eval.json")),
+        "missing": ("export", str(directory / "missing.pt"), str(directory / "never.pt")),
+    }
+    return {"directory": directory, **run_cli.batch(jobs)}
+
+
+def test_export_keeps_the_networks_config_and_evaluation_only(exported, tiny_run):
+    result = exported["run-dir"]
+    assert result.returncode == 0, result.stderr[-3000:]
+    slim_path = exported["directory"] / "slim.pt"
+    assert result.stdout.strip().splitlines()[-1] == str(slim_path)
+    assert get_unsafe_globals_in_checkpoint(slim_path) == []
+    slim = load_checkpoint(slim_path)
+    source = tiny_run.run_dir / "checkpoints" / "latest.pt"  # a run directory stands for its latest.pt
+    full = load_checkpoint(source)
+    assert set(slim) == SLIM_KEYS  # no optimiser, RNG, collector rows or reuse state
+    for key in ("actor", "critic"):
+        assert_same_tensors(slim[key], full[key], key)
+    for key in ("config", "config_yaml", "counters"):
+        assert slim[key] == full[key], key
+    assert slim["exported_from"] == str(source)
+    assert slim["evaluation"] == json.loads((tiny_run.run_dir / "eval" / "eval.json").read_text())
+
+
+def test_an_exported_agent_is_a_baseline_for_pretrained_runs(exported, compose_train, tiny_args, tmp_path):
+    slim_path = exported["directory"] / "slim.pt"
+    assert exported["run-dir"].returncode == 0, exported["run-dir"].stderr[-3000:]
+    trainer = Trainer(compose_train(*tiny_args(), "method=pretrained", f"method.baseline={slim_path}"), tmp_path)
+    slim = load_checkpoint(slim_path)
+    assert_same_tensors(trainer.actor.state_dict(), slim["actor"], "actor")
+    assert_same_tensors(trainer.critic.state_dict(), slim["critic"], "critic")
+    trainer.collector.shutdown()
+
+
+def test_a_missing_source_is_one_line(exported):
+    result = exported["missing"]
+    assert result.returncode == 2, result.stderr[-3000:]
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert lines == [f"agrl.export: error: {exported['directory'] / 'missing.pt'}: no such checkpoint file"]
+    assert not (exported["directory"] / "never.pt").exists()

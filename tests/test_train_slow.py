@@ -1,0 +1,47 @@
+"""Slow suite (``make test-slow`` = ``pytest -m slow``): the recipes users run actually learn.
+
+Each test is one real ``python -m agrl.train`` run on the project's defaults, with a budget in decisions
+(``ppo.total_frames``, no wall-time limit, so the result does not depend on the machine's load), a stated seed
+and a subprocess timeout as its time budget. Success is read from the run's final evaluation (``eval.json``:
+``eval.episodes`` = 1000 deterministic episodes over the full start box). Run times measured: docs/training.md.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+ITERATION = 512 * 64  # decisions per iteration of conf/ppo/default.yaml (num_envs x steps_per_env)
+
+
+def train_and_read_evaluation(run_cli, run_dir, *overrides: str, timeout_minutes: float) -> dict:
+    result = run_cli("train", *overrides, "ppo.max_minutes=0", "progress=false", f"hydra.run.dir={run_dir}",
+                     timeout=60 * timeout_minutes)
+    assert result.returncode == 0, f"{result.stdout[-3000:]}\n{result.stderr[-3000:]}"
+    evaluation = json.loads((run_dir / "eval" / "eval.json").read_text())
+    assert evaluation["episodes"] == 1000  # conf/config.yaml eval.episodes: the paper's 1000 simulations
+    return evaluation
+
+
+def test_default_recipe_learns_the_fixed_task(tmp_path, run_cli):
+    """``python -m agrl.train`` defaults (fixed task, scratch, curriculum, target_success=0.995), seed 0,
+    at most 100 iterations (3.3 M decisions; the shipped baseline took 40): >= 99 % on 1000 episodes."""
+    evaluation = train_and_read_evaluation(run_cli, tmp_path / "run", "seed=0", f"ppo.total_frames={100 * ITERATION}",
+                                           timeout_minutes=60)
+    assert evaluation["task"] == "fixed" and evaluation["method"] == "scratch"
+    assert evaluation["success_rate"] >= 0.99, evaluation
+
+
+@pytest.mark.parametrize(("method", "iterations"), [("pretrained", 10), ("reuse", 60)])
+def test_methods_from_the_shipped_baseline_learn_uniform_20(tmp_path, run_cli, method, iterations):
+    """Pre-trained and policy reuse from the shipped baseline on the uniform 20 m/s destination, seed 0,
+    stopping at 99 % periodic evaluation success or after ``iterations``: >= 95 % on 1000 episodes."""
+    evaluation = train_and_read_evaluation(
+        run_cli, tmp_path / "run", "task=uniform", "speed=20", f"method={method}", "seed=0", "target_success=0.99",
+        f"ppo.total_frames={iterations * ITERATION}", timeout_minutes=45,
+    )
+    assert evaluation["task"] == "uniform" and evaluation["method"] == method
+    assert evaluation["success_rate"] >= 0.95, evaluation
