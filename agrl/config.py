@@ -400,11 +400,12 @@ def validated_section(schema, values: dict) -> Any:
         raise (cause or ConfigError(str(error).splitlines()[0])) from None
 
 
-def saved_guidance_parameters(saved: dict, task: TaskConfig | None = None) -> GuidanceParameters:
+def saved_guidance_parameters(saved: dict, task: TaskConfig | None = None,
+                              compile: bool | None = None) -> GuidanceParameters:
     """The task a checkpoint's saved config describes (or ``task`` instead of its own), validated."""
     task = task if task is not None else validated_section(TaskConfig, saved["task"])
     return to_guidance_parameters(task, validated_section(RewardConfig, saved["reward"]),
-                                  validated_section(SimulationConfig, saved["simulation"]))
+                                  validated_section(SimulationConfig, saved["simulation"]), compile=compile)
 
 
 def config_options(group: str) -> list[str]:
