@@ -39,18 +39,23 @@ lint: install
 	$(PY) -m ruff check agrl tests
 
 # The reproductions summarised in docs/results/ (hours of CPU; see those pages for the budgets used).
+# LAUNCHER picks Hydra's launcher: empty = one run at a time in this process (what the wall-time figures need),
+# joblib = several local processes (hydra.launcher.n_jobs), submitit_slurm = Slurm jobs (see docs/training.md).
+# Extra overrides in ARGS, e.g. make experiments-moving LAUNCHER=submitit_slurm ARGS="hydra.launcher.partition=cpu"
+LAUNCHER ?=
+SWEEP = $(if $(LAUNCHER),hydra/launcher=$(LAUNCHER)) $(ARGS)
 MOVING := seed=0,1,2 ppo.max_minutes=3 target_success=0.99 progress=false
 # 100 m/s, the hardest setting, also gets 8-minute runs.
 MOVING_LONG := seed=0,1,2 ppo.max_minutes=8 target_success=0.99 progress=false
 experiments-moving: install
-	$(PY) -m agrl.train -m $(MOVING) task=uniform speed=10,20,50,100 method=scratch,pretrained,reuse hydra.sweep.dir=runs/moving/uniform
-	$(PY) -m agrl.train -m $(MOVING) task=curved radius=500,1000,2000,5000 method=scratch,pretrained,reuse hydra.sweep.dir=runs/moving/curved
-	$(PY) -m agrl.train -m $(MOVING) task=irregular method=scratch,pretrained,reuse hydra.sweep.dir=runs/moving/irregular
-	$(PY) -m agrl.train -m $(MOVING_LONG) task=uniform speed=100 method=pretrained,reuse hydra.sweep.dir=runs/moving_long/uniform
-	$(PY) -m agrl.train -m $(MOVING_LONG) task=uniform speed=100 method=reuse method.start_from_baseline=true hydra.sweep.dir=runs/moving_long/uniform
+	$(PY) -m agrl.train -m $(SWEEP) $(MOVING) task=uniform speed=10,20,50,100 method=scratch,pretrained,reuse hydra.sweep.dir=runs/moving/uniform
+	$(PY) -m agrl.train -m $(SWEEP) $(MOVING) task=curved radius=500,1000,2000,5000 method=scratch,pretrained,reuse hydra.sweep.dir=runs/moving/curved
+	$(PY) -m agrl.train -m $(SWEEP) $(MOVING) task=irregular method=scratch,pretrained,reuse hydra.sweep.dir=runs/moving/irregular
+	$(PY) -m agrl.train -m $(SWEEP) $(MOVING_LONG) task=uniform speed=100 method=pretrained,reuse hydra.sweep.dir=runs/moving_long/uniform
+	$(PY) -m agrl.train -m $(SWEEP) $(MOVING_LONG) task=uniform speed=100 method=reuse method.start_from_baseline=true hydra.sweep.dir=runs/moving_long/uniform
 
 experiments-table3: install
-	$(PY) -m agrl.train -m reward=none,continuous,position,both seed=0,1,2 ppo.max_minutes=5 progress=false hydra.sweep.dir=runs/table3
+	$(PY) -m agrl.train -m $(SWEEP) reward=none,continuous,position,both seed=0,1,2 ppo.max_minutes=5 progress=false hydra.sweep.dir=runs/table3
 
 report: install
 	$(PY) -m agrl.report table3 runs/table3

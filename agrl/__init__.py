@@ -22,7 +22,8 @@ def _register_gym_env() -> None:
     except ImportError:  # gymnasium is a dependency; without it there is nothing to register
         return
     if GYM_ENV_ID not in gymnasium.registry:  # importing twice (or reloading) must not fail
-        gymnasium.register(id=GYM_ENV_ID, entry_point="agrl.envs.gym:GuidanceGymEnv")
+        gymnasium.register(id=GYM_ENV_ID, entry_point="agrl.envs.gym:GuidanceGymEnv",
+                           vector_entry_point="agrl.envs.gym_vector:GuidanceVectorEnv")
 
 
 _register_gym_env()

@@ -9,7 +9,16 @@ integration step = 150 integration steps):
   at several batch sizes, eager and fused with ``torch.compile``, with the ratio to the
   reference;
 - ``torchrl_env``: the full TorchRL ``GuidanceEnv.step_and_maybe_reset`` (simulator, reward,
-  observation, TensorDict bookkeeping, partial resets: what a collector calls) at one batch size.
+  observation, TensorDict bookkeeping, partial resets: what a collector calls) at one batch size;
+- ``gym_vector_env``: ``gymnasium.make_vec("agrl/Guidance-v0", num_envs=N,
+  vectorization_mode="vector_entry_point")`` stepped with random numpy actions (next-step autoreset,
+  numpy out) at the TorchRL env's batch, eager and compiled;
+- ``gym_env``: ``gymnasium.make("agrl/Guidance-v0")`` stepped with random maneuvers and reset at the
+  end of each episode (what a gymnasium training loop calls), with the ratio to the reference;
+- ``guide_single`` / ``guide_batch``: microseconds per query of ``agrl.guide.Guide`` (the shipped
+  baseline, from its checkpoint) for one query (``instruct``, median over start states) and per row of
+  one ``instruct_batch`` call at ``--guide-batch`` rows; ``--guide-formats onnx torch_export`` adds the
+  same two rows for those exports (written to a temporary folder first).
 
 Every line has ``name``, ``value`` and ``unit``, plus fields such as ``batch``,
 ``compiled``, ``substeps`` and ``device``. Each figure is the median of ``--repeats``
@@ -193,6 +202,104 @@ def bench_torchrl_env(params: GuidanceParameters, batch: int, compiled: bool, de
                            device, repeats, min_seconds)
 
 
+def bench_gym_vector_env(params_task: dict, batch: int, compiled: bool, device: torch.device, repeats: int,
+                         min_seconds: float) -> dict:
+    """Decisions per second of the gymnasium vector env (numpy actions in, numpy results out)."""
+    import gymnasium
+    import numpy as np
+
+    import agrl  # registers agrl/Guidance-v0
+
+    if compiled:
+        torch._dynamo.reset()
+    envs = gymnasium.make_vec(agrl.GYM_ENV_ID, num_envs=batch, vectorization_mode="vector_entry_point",
+                              compile=compiled, device=str(device), **params_task)
+    envs.reset(seed=0)
+    actions = np.random.default_rng(0).integers(0, 7, size=(16, batch))
+    position = [0]
+
+    def one_decision():
+        position[0] += 1
+        envs.step(actions[position[0] % 16])
+
+    params = envs.params
+    record = _time_decisions("gym_vector_env_decisions_per_second", one_decision, batch, envs.env.simulator, params,
+                             device, repeats, min_seconds)
+    envs.close()
+    return record
+
+
+def bench_gym_env(params_task: dict, repeats: int, min_seconds: float) -> dict:
+    """Decisions per second of the single gymnasium env (random maneuvers, reset when an episode ends)."""
+    import gymnasium
+
+    import agrl  # registers agrl/Guidance-v0
+
+    env = gymnasium.make(agrl.GYM_ENV_ID, **params_task)
+    env.reset(seed=0)
+    actions = [random.Random(0).randrange(7) for _ in range(1024)]
+    position = [0]
+
+    def one_decision():
+        position[0] += 1
+        _, _, terminated, _, _ = env.step(actions[position[0] % 1024])
+        if terminated:
+            env.reset()
+
+    seconds, calls = time_call(one_decision, repeats, min_seconds, warmup=16)
+    return {
+        "name": "gym_env_decisions_per_second",
+        "value": _significant(1.0 / seconds),
+        "unit": "decisions/s",
+        "batch": 1,
+        "compiled": False,
+        "substeps": env.unwrapped.params.simulation.substeps,
+        "device": "cpu",
+        "implementation": "gymnasium.make('agrl/Guidance-v0'), one row in Python floats (agrl/envs/gym.py)",
+        "seconds_per_decision": _significant(seconds),
+        "calls_per_timing": calls,
+        "repeats": repeats,
+    }
+
+
+def bench_guide(kind: str, batch: int, repeats: int, min_seconds: float) -> list[dict]:
+    """Microseconds per query of the baseline :class:`agrl.guide.Guide` loaded from ``kind``: one query, a batch."""
+    import tempfile
+
+    from agrl.guide import Guide
+
+    with tempfile.TemporaryDirectory() as folder:
+        if kind == "checkpoint":
+            guide = Guide.load("baseline")
+        else:
+            from agrl.export import SUFFIXES, export_onnx, export_torch
+
+            path = f"{folder}/guide{SUFFIXES[kind]}"
+            (export_onnx if kind == "onnx" else export_torch)("baseline", path)
+            guide = Guide.load(path)
+    params = guidance_parameters(**TASK)
+    aircraft, destination, _, _, _ = _inputs(params, batch, torch.device("cpu"))
+    last_action = torch.randint(0, 7, (batch,), generator=torch.Generator().manual_seed(1))
+    aircraft, destination, last_action = aircraft.numpy(), destination.numpy(), last_action.numpy()
+    rows = [(aircraft[i].tolist(), destination[i].tolist(), int(last_action[i])) for i in range(min(256, batch))]
+    position = [0]
+
+    def one_query():
+        position[0] += 1
+        return guide.instruct(*rows[position[0] % len(rows)])
+
+    single, single_calls = time_call(one_query, repeats, min_seconds, warmup=64)
+    batched, batch_calls = time_call(lambda: guide.instruct_batch(aircraft, destination, last_action), repeats,
+                                     min_seconds, warmup=2)
+    common = {"unit": "us/query", "guide": kind, "device": "cpu", "repeats": repeats}
+    return [
+        {"name": "guide_single_query_us", "value": _significant(single * 1e6), "batch": 1,
+         "calls_per_timing": single_calls, **common},
+        {"name": "guide_batch_us_per_query", "value": _significant(batched * 1e6 / batch), "batch": batch,
+         "seconds_per_call": _significant(batched), "calls_per_timing": batch_calls, **common},
+    ]
+
+
 # ---------------------------------------------------------------------------- machine and CLI
 def _cpu_model() -> str:
     try:
@@ -256,6 +363,10 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                         help="torch.set_num_threads (default: torch's default, one per core). On a machine "
                              "that other processes keep busy, 1 gives stable figures; more threads then "
                              "wait for each other")
+    parser.add_argument("--guide-batch", type=_positive, default=None, metavar="N",
+                        help="rows of the guide's batched query (default 4096; --quick: 64)")
+    parser.add_argument("--guide-formats", nargs="+", choices=("checkpoint", "onnx", "torch_export"),
+                        default=["checkpoint"], help="guides to time (default: the baseline checkpoint)")
     parser.add_argument("--device", default="cpu", help="torch device of the batched runs (default cpu)")
     parser.add_argument("--quick", action="store_true",
                         help="smoke test: small batches, one repeat, eager only (seconds, not minutes)")
@@ -263,6 +374,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     quick = args.quick
     args.batch_sizes = args.batch_sizes or list(QUICK_BATCH_SIZES if quick else FULL_BATCH_SIZES)
     args.env_batch = args.env_batch or (64 if quick else 4096)
+    args.guide_batch = args.guide_batch or (64 if quick else 4096)
     args.repeats = args.repeats or (1 if quick else 5)
     args.min_seconds = args.min_seconds if args.min_seconds is not None else (0.0 if quick else 1.0)
     args.modes = args.modes or (["eager"] if quick else list(MODES))
@@ -298,6 +410,17 @@ def main(argv: Sequence[str] | None = None) -> int:
                                    args.min_seconds)
         record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
         emit(record)
+    for mode in args.modes:
+        record = bench_gym_vector_env(TASK, args.env_batch, mode == "compiled", device, args.repeats,
+                                      args.min_seconds)
+        record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
+        emit(record)
+    record = bench_gym_env(TASK, args.repeats, args.min_seconds)
+    record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
+    emit(record)
+    for kind in args.guide_formats:
+        for record in bench_guide(kind, args.guide_batch, args.repeats, args.min_seconds):
+            emit(record)
     return 0
 
 

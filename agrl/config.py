@@ -100,6 +100,7 @@ class RewardConfig:
     c7: float = 0.5
     c8: float = 1e-5
     gamma: float = 0.99
+    switch_cost: float = 0.0  # not in the paper: reward units per instruction (conf/reward/switch.yaml)
 
     def __post_init__(self) -> None:
         _require(self.c1 > 0, "reward.c1", self.c1, "> 0 (success must pay, equation 6)")
@@ -107,6 +108,8 @@ class RewardConfig:
         _require(self.c4 < self.c5 <= 0, "reward.c4/c5", (self.c4, self.c5), "c4 < c5 <= 0 (equation 9)")
         _require(min(self.c6, self.c7, self.c8) >= 0, "reward.c6..c8", (self.c6, self.c7, self.c8), ">= 0")
         _require(0 < self.gamma <= 1, "reward.gamma", self.gamma, "(0, 1]")
+        _require(0 <= self.switch_cost < self.c1, "reward.switch_cost", self.switch_cost,
+                 "[0, c1) reward units per instruction")
 
 
 # ---------------------------------------------------------------------------- simulation
@@ -267,6 +270,7 @@ class EvaluationConfig:
     interval: int = 10  # iterations between periodic evaluations during training (0 = never)
     interval_seconds: float = 0.0  # s of training between periodic evaluations; > 0 replaces `interval`
     periodic_episodes: int = 256  # episodes of each periodic evaluation
+    trajectory_image: bool = True  # log each periodic evaluation's trajectory figure to TensorBoard (Images)
 
     def __post_init__(self) -> None:
         _require(self.episodes >= 1, "eval.episodes", self.episodes, ">= 1")
@@ -385,6 +389,33 @@ def compose_config(*overrides: str, config_name: str = "config") -> DictConfig:
         return compose(config_name=config_name, overrides=list(overrides))
 
 
+def validated_section(schema, values: dict) -> Any:
+    """One config section (e.g. a checkpoint's saved ``task``) checked against its schema, as a dataclass."""
+    try:
+        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema), values))
+    except Exception as error:
+        cause = error
+        while cause is not None and not isinstance(cause, ConfigError):
+            cause = cause.__cause__ or cause.__context__
+        raise (cause or ConfigError(str(error).splitlines()[0])) from None
+
+
+def saved_guidance_parameters(saved: dict, task: TaskConfig | None = None,
+                              compile: bool | None = None) -> GuidanceParameters:
+    """The task a checkpoint's saved config describes (or ``task`` instead of its own), validated."""
+    task = task if task is not None else validated_section(TaskConfig, saved["task"])
+    return to_guidance_parameters(task, validated_section(RewardConfig, saved["reward"]),
+                                  validated_section(SimulationConfig, saved["simulation"]), compile=compile)
+
+
+def config_options(group: str) -> list[str]:
+    """The options of a config group as shipped in ``conf/`` (``config_options("task")`` -> fixed, ...)."""
+    from importlib.resources import files
+
+    return sorted(entry.name.removesuffix(".yaml") for entry in files("agrl.conf").joinpath(group).iterdir()
+                  if entry.name.endswith(".yaml"))
+
+
 def to_guidance_parameters(task: TaskConfig, reward: RewardConfig, simulation: SimulationConfig,
                            compile: bool | None = None) -> GuidanceParameters:
     """Map validated configs to the plain records of :mod:`agrl.envs`."""
@@ -419,6 +450,7 @@ def to_guidance_parameters(task: TaskConfig, reward: RewardConfig, simulation: S
             distance_weight=reward.c6, heading_weight=reward.c7, altitude_weight=reward.c8,
             gamma=reward.gamma,
             use_continuous_action=reward.use_continuous_action, use_position=reward.use_position,
+            switch_cost=reward.switch_cost,
         ),
         initial_state=InitialStateDistribution(
             x_range=tuple(start.x_range), y_range=tuple(start.y_range), z_range=tuple(start.z_range),

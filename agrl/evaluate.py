@@ -15,29 +15,18 @@ from typing import Any
 import hydra
 import torch
 from hydra.core.hydra_config import HydraConfig
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from agrl.config import (
     AgentConfig,
     ConfigError,
-    RewardConfig,
-    SimulationConfig,
     TaskConfig,
     load_config,
+    saved_guidance_parameters,
     task_label,
-    to_guidance_parameters,
+    validated_section,
 )
 from agrl.rl.checkpoint import CheckpointError, load_checkpoint, load_module_state, resolve_checkpoint_path
-
-
-def _structured(schema, values: dict) -> Any:
-    try:
-        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema), values))
-    except Exception as error:
-        cause = error
-        while cause is not None and not isinstance(cause, ConfigError):
-            cause = cause.__cause__ or cause.__context__
-        raise (cause or ConfigError(str(error).splitlines()[0])) from None
 
 
 def load_agent(reference: str, device: torch.device | str = "cpu"):
@@ -46,7 +35,7 @@ def load_agent(reference: str, device: torch.device | str = "cpu"):
 
     path = resolve_checkpoint_path(reference)
     payload = load_checkpoint(path, required=("actor", "config"))
-    agent = _structured(AgentConfig, payload["config"]["agent"])
+    agent = validated_section(AgentConfig, payload["config"]["agent"])
     actor = make_actor(agent.actor_hidden, agent.activation, device)
     load_module_state(actor, payload["actor"], path, "actor")
     return actor.eval(), payload["config"], path
@@ -59,10 +48,8 @@ def evaluate(cfg) -> dict[str, Any]:
 
     device = torch.device(cfg.device)
     actor, saved, path = load_agent(cfg.checkpoint, device)
-    task = cfg.task if cfg.task is not None else _structured(TaskConfig, saved["task"])
-    reward = _structured(RewardConfig, saved["reward"])
-    simulation = _structured(SimulationConfig, saved["simulation"])
-    params = to_guidance_parameters(task, reward, simulation)
+    task = cfg.task if cfg.task is not None else validated_section(TaskConfig, saved["task"])
+    params = saved_guidance_parameters(saved, task)
     env = GuidanceEnv(params, num_envs=cfg.episodes, device=device, seed=cfg.seed)
     records = run_episodes(env, actor, record_trajectories=cfg.trajectories > 0)
     summary = summarise(records)

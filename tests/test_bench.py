@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from agrl.bench import parse_args
@@ -27,12 +28,20 @@ def test_quick_run_prints_json_lines():
         "simulator_decisions_per_second",
         "simulator_decisions_per_second",
         "torchrl_env_decisions_per_second",
+        "gym_vector_env_decisions_per_second",
+        "gym_env_decisions_per_second",
+        "guide_single_query_us",
+        "guide_batch_us_per_query",
     ]
+    guide_single, guide_batch = records[-2:]
+    assert guide_single["unit"] == guide_batch["unit"] == "us/query" and guide_single["value"] > 0
+    assert guide_single["batch"] == 1 and guide_batch["batch"] == 64 and guide_batch["guide"] == "checkpoint"
+    records = records[:-2]
     for record in records[1:]:
         assert record["unit"] == "decisions/s" and record["value"] > 0
         assert record["substeps"] == 150 and record["compiled"] is False
         assert {"batch", "device"} <= set(record)
-    assert [record["batch"] for record in records[2:]] == [8, 32, 8]
+    assert [record["batch"] for record in records[2:]] == [8, 32, 8, 8, 1]
     assert all(record["speedup_vs_reference"] > 0 for record in records[2:])
 
 
@@ -46,3 +55,27 @@ def test_arguments():
     for bad in (["--batch-sizes", "0"], ["--modes", "jit"], ["--repeats", "-1"], ["--threads", "0"]):
         with pytest.raises(SystemExit):
             parse_args(bad)
+
+
+def test_stable_baselines3_sees_the_vector_env_through_the_adapter():
+    """python -m agrl.bench_peer's adapter: SB3's VecEnv contract (same-step reset, terminal_observation)."""
+    from stable_baselines3 import PPO
+
+    from agrl.bench_peer import make_sb3_vector_env
+
+    env = make_sb3_vector_env(4, compile=False, seed=0, task="fixed", max_decisions=2)
+    observations = env.reset()
+    assert observations.shape == (4, 23) and env.num_envs == 4
+    env.step_async(np.zeros(4, dtype=np.int64))
+    _, rewards, dones, infos = env.step_wait()
+    assert rewards.dtype == np.float32 and not dones.any() and infos == [{}] * 4
+    env.step_async(np.ones(4, dtype=np.int64))
+    observations, _, dones, infos = env.step_wait()
+    assert dones.all()  # the 2-decision budget
+    for row, info in enumerate(infos):  # the returned observation already starts the next episode
+        assert info["terminal_observation"].shape == (23,) and info["TimeLimit.truncated"] is False
+        assert not np.allclose(info["terminal_observation"], observations[row])
+    model = PPO("MlpPolicy", env, n_steps=4, batch_size=8, n_epochs=1, device="cpu", seed=0)
+    model.learn(total_timesteps=16)
+    assert model.num_timesteps == 16
+    env.close()

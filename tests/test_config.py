@@ -54,6 +54,15 @@ def test_curved_radius_flows_into_task():
     )
 
 
+def test_switch_cost_is_off_in_the_papers_variants_and_reaches_the_env():
+    for name in ("none", "continuous", "position", "both"):
+        cfg = load(f"reward={name}")
+        assert to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, compile=False).reward.switch_cost == 0.0
+    cfg = load("reward=switch", "reward.switch_cost=0.7")
+    params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, compile=False).reward
+    assert (params.switch_cost, params.use_continuous_action, params.use_position) == (0.7, True, True)
+
+
 def test_unknown_task_names_the_value():
     with pytest.raises(MissingConfigException) as info:
         load("task=bogus")
@@ -91,6 +100,7 @@ def test_wrong_type_names_the_value():
     "overrides,named",
     [
         (("reward.gamma=1.5",), "reward.gamma"),
+        (("reward=switch", "reward.switch_cost=-0.1"), "reward.switch_cost"),
         (("simulation.decision_period=3.01",), "simulation.decision_period"),
         (("simulation.min_speed=300",), "simulation.min_speed"),
         (("simulation.initial_state.x_range=[-20000,0]",), "simulation.initial_state.x_range"),

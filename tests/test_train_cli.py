@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import csv
+import io
 import json
 import random
 import signal
 import subprocess
 import time
 
+import numpy as np
 import pytest
+from PIL import Image
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 from agrl.rl.checkpoint import CheckpointError, load_checkpoint
@@ -30,14 +33,13 @@ def error_lines(stderr: str) -> list[str]:
 def periodic_success_of(checkpoint) -> float:
     """Success of a training checkpoint's actor on its run's periodic evaluation set (eval.periodic_episodes
     episodes from the evaluation seed, seed + 1000003), evaluated here from the saved actor and config."""
-    from agrl.config import RewardConfig, SimulationConfig, TaskConfig, to_guidance_parameters
+    from agrl.config import saved_guidance_parameters
     from agrl.envs.guidance import GuidanceEnv
-    from agrl.evaluate import _structured, load_agent
+    from agrl.evaluate import load_agent
     from agrl.rl.evaluation import run_episodes, summarise
 
     actor, saved, _ = load_agent(str(checkpoint))
-    params = to_guidance_parameters(_structured(TaskConfig, saved["task"]), _structured(RewardConfig, saved["reward"]),
-                                    _structured(SimulationConfig, saved["simulation"]), compile=False)
+    params = saved_guidance_parameters(saved, compile=False)
     env = GuidanceEnv(params, num_envs=saved["eval"]["periodic_episodes"], seed=saved["seed"] + 1_000_003)
     return summarise(run_episodes(env, actor))["success_rate"]
 
@@ -116,6 +118,19 @@ def test_tiny_run_tensorboard_scalars(tiny_run):
     # epoch) of a 0/1 flag per row: a whole number of 512ths.
     for event in events.Scalars("loss/clip_fraction"):
         assert event.value * 512 == round(event.value * 512) and 0 <= event.value <= 1, event.value
+
+
+def test_tiny_run_tensorboard_trajectory_images(tiny_run):
+    """Each periodic evaluation (before training, after iterations 2 and 4) logs its trajectory figure."""
+    events = EventAccumulator(str(tiny_run.run_dir / "tensorboard"), size_guidance={"images": 0})
+    events.Reload()
+    images = events.Images("eval/trajectories")
+    assert [image.step for image in images] == [0, 1024, 2048]
+    for image in images:
+        picture = np.asarray(Image.open(io.BytesIO(image.encoded_image_string)).convert("RGB"))
+        assert picture.shape == (image.height, image.width, 3) and min(image.height, image.width) >= 300
+        # A drawn figure (box, paths in outcome colours, legend), not a blank canvas.
+        assert len(np.unique(picture.reshape(-1, 3), axis=0)) > 50
 
 
 # ---------------------------------------------------------------------------- Ctrl-C

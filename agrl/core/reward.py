@@ -12,6 +12,10 @@ Phi(S_{t+1}) depends only on S_{t+1} = (..., A_t, A_{t-1}): switching maneuver a
 step t costs gamma * (c4 - c5) relative to holding it, and the shaping terms
 telescope exactly: sum_t gamma^t F_t = gamma^T Phi(S_T) - Phi(S_0), with
 Phi(terminal) = 0, so the optimal policy is unchanged (equations 15-18).
+
+Beyond the paper: :func:`switch_cost_reward` is a plain (non-potential) cost per
+change of maneuver. It does change the optimal policy, which is its purpose; it is
+off (``switch_cost = 0``) in the paper's four variants.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ class RewardParameters:
     gamma: float = 0.99
     use_continuous_action: bool = True  # the C term of equation 8
     use_position: bool = True  # the P term of equation 8
+    switch_cost: float = 0.0  # NOT in the paper: reward units per instruction, see switch_cost_reward
 
 
 def termination_reward(outcome: torch.Tensor, params: RewardParameters) -> torch.Tensor:
@@ -100,6 +105,27 @@ def shaping_reward(
 ) -> torch.Tensor:
     """Equation 7: F = gamma * Phi(S_{t+1}) - Phi(S_t)."""
     return params.gamma * potential_after - potential_before
+
+
+def switch_cost_reward(
+    action: torch.Tensor, previous_action: torch.Tensor, params: RewardParameters
+) -> torch.Tensor:
+    """NOT from the paper: -switch_cost on every decision whose maneuver differs from the one being flown.
+
+    ``previous_action`` is the maneuver flown before this decision (the state's
+    ``last_action``; an episode starts in steady flight, so the first decision
+    pays only if it commands a maneuver). It prices exactly what the evaluation
+    counts as an instruction. Unlike equation 9's potential it does not
+    telescope, so it changes which policy is optimal: the paper's potential form
+    provably cannot make the agent switch less (module doc), this term can.
+    The cost is paid when the switch happens (discounted by gamma^t like every
+    reward), while the success reward c1 arrives gamma^T later; so with c1 = 20 and
+    gamma = 0.99, each extra decision of flight costs about c1 * gamma^T * (1 - gamma)
+    (about 0.14 at T = 35), and a switch cost k trades one instruction against about
+    k / 0.14 extra decisions.
+    """
+    changed = action != previous_action
+    return torch.where(changed, -params.switch_cost, 0.0).to(torch.float32)
 
 
 def step_reward(

@@ -20,7 +20,7 @@ from agrl.core.destinations import redraw_irregular_motion
 from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
 from agrl.core.parameters import GuidanceParameters, MotionKind
-from agrl.core.reward import potential, step_reward
+from agrl.core.reward import potential, shaping_reward, switch_cost_reward, termination_reward
 from agrl.core.simulation import DecisionSimulator
 from agrl.core.termination import Outcome
 
@@ -40,6 +40,8 @@ STATE_KEYS = (
 )
 #: Entries a scenario (explicit initial conditions) provides; see :meth:`GuidanceEnv.scenario`.
 SCENARIO_KEYS = ("aircraft_state", "destination_state", "destination_speed", "destination_turn_rate")
+#: The reward's parts of the last step (they sum to ``reward``); statistics only, not state.
+REWARD_PART_KEYS = ("reward_termination", "reward_action_shaping", "reward_position_shaping", "reward_switch_cost")
 
 
 class GuidanceEnv(EnvBase):
@@ -91,6 +93,7 @@ class GuidanceEnv(EnvBase):
             episode_return=Unbounded(batch, device=self.device),
             instruction_count=Bounded(0, self.params.max_decisions, batch, dtype=torch.int64, device=self.device),
             outcome=Categorical(len(Outcome), batch, device=self.device),
+            **{key: Unbounded(batch, device=self.device) for key in REWARD_PART_KEYS},
             shape=batch,
             device=self.device,
         )
@@ -105,6 +108,11 @@ class GuidanceEnv(EnvBase):
 
     def _set_seed(self, seed: int | None) -> None:
         self._generator.manual_seed(int(seed) if seed is not None else 0)
+
+    @property
+    def generator(self) -> torch.Generator:
+        """The env's own random stream: initial states and the irregular destination's redraws."""
+        return self._generator
 
     def generator_state(self) -> torch.Tensor:
         """The state of the env's own random stream (initial states, irregular motion), for exact resume."""
@@ -122,11 +130,30 @@ class GuidanceEnv(EnvBase):
             simulation.airspace, simulation.limits,
         )
 
-    def potential(self, state: TensorDictBase, terminal: torch.Tensor) -> torch.Tensor:
-        return potential(
-            state["aircraft_state"], state["destination_state"], state["last_action"],
-            state["action_before_last"], terminal, self.params.reward,
-        )
+    def reward_parts(
+        self, state: TensorDictBase, next_state: TensorDictBase, terminal: torch.Tensor, switch_cost: torch.Tensor
+    ) -> dict[str, torch.Tensor]:
+        """The step's reward split into its parts (:data:`REWARD_PART_KEYS`); they sum to the reward.
+
+        Each shaping term is its own equation-7 difference of its own potential
+        (equation 9's C or equations 10-11's P), which is exact since equation 7 is
+        linear in Phi = C + P.
+        """
+        params = self.params.reward
+        parts = {"reward_termination": termination_reward(next_state["outcome"], params)}
+        for key, only_action in (("reward_action_shaping", True), ("reward_position_shaping", False)):
+            term = dataclasses.replace(
+                params,
+                use_continuous_action=params.use_continuous_action and only_action,
+                use_position=params.use_position and not only_action,
+            )
+            before = potential(state["aircraft_state"], state["destination_state"], state["last_action"],
+                               state["action_before_last"], torch.zeros_like(terminal), term)
+            after = potential(next_state["aircraft_state"], next_state["destination_state"],
+                              next_state["last_action"], next_state["action_before_last"], terminal, term)
+            parts[key] = shaping_reward(before, after, term)
+        parts["reward_switch_cost"] = switch_cost
+        return parts
 
     def scenario(
         self,
@@ -180,6 +207,8 @@ class GuidanceEnv(EnvBase):
         if self._pending_state is not None:
             state, self._pending_state = self._pending_state, None
             state["observation"] = self.observe(state)
+            for key in REWARD_PART_KEYS:
+                state[key] = torch.zeros(batch, device=self.device)
             return state
         scenario = tensordict.get("scenario", None) if tensordict is not None else None
         if scenario is not None:
@@ -210,6 +239,7 @@ class GuidanceEnv(EnvBase):
                 "outcome": torch.full((count,), int(Outcome.RUNNING), dtype=torch.int64, device=self.device),
                 "done": torch.zeros(count, 1, dtype=torch.bool, device=self.device),
                 "terminated": torch.zeros(count, 1, dtype=torch.bool, device=self.device),
+                **{key: torch.zeros(count, device=self.device) for key in REWARD_PART_KEYS},
             },
             batch_size=[count],
             device=self.device,
@@ -264,9 +294,12 @@ class GuidanceEnv(EnvBase):
             batch_size=state.batch_size,
             device=self.device,
         )
-        potential_before = self.potential(state, torch.zeros_like(terminal))
-        potential_after = self.potential(next_state, terminal)
-        reward = step_reward(outcome, potential_before, potential_after, self.params.reward)
+        # Equation 5, R = T + F, with F split by potential term (equation 7 is linear in Phi = C + P), plus the
+        # optional switch cost: the parts are logged, and their sum is the reward.
+        switch_cost = switch_cost_reward(action, state["last_action"], self.params.reward)
+        parts = self.reward_parts(state, next_state, terminal, switch_cost)
+        next_state.update(parts)
+        reward = sum(parts.values())
         next_state["reward"] = reward.unsqueeze(-1)
         next_state["episode_return"] = state["episode_return"] + reward
         # An instruction is a decision that changes the maneuver being flown.

@@ -1,4 +1,4 @@
-"""A single, unbatched gymnasium environment over :class:`agrl.envs.GuidanceEnv`.
+"""The paper's MDP as a single, unbatched gymnasium environment (fast: one row in Python floats).
 
 ``import agrl`` registers it as ``agrl/Guidance-v0``, so any library that trains on
 gymnasium environments can use the paper's MDP::
@@ -8,13 +8,17 @@ gymnasium environments can use the paper's MDP::
     obs, info = env.reset(seed=0)
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
 
-It is a thin layer: one row of a ``GuidanceEnv`` (``num_envs=1``, CPU) does the
-simulation, the reward and the observation (``GuidanceEnv.observe``), so the
-gymnasium and TorchRL environments cannot drift apart. The task parameters are
-built from the same schema and defaults as ``python -m agrl.train``
-(:mod:`agrl.config`): ``conf/simulation/paper.yaml`` and ``conf/reward/*.yaml``
-equal the dataclass defaults, and the per-task destination defaults below are
-those of ``conf/task/*.yaml`` (a test composes ``conf/`` and compares).
+One row runs in Python floats (:mod:`agrl.envs.rows`): the decision is
+:func:`agrl.reference.reference_decision` (the pure-Python form of the batched simulator,
+tested equal to it), the observation and reward are :mod:`agrl.envs.rows`' one-row forms of
+:mod:`agrl.core`'s (tested equal to them). Resets, seeding and the irregular destination's
+random redraws are those of a one-row :class:`agrl.envs.GuidanceEnv` (same functions, same
+generator), so from the same seed or scenario and the same actions the two environments fly
+the same episodes (``tests/envs/test_gym.py`` states the float tolerance: the batched env runs
+float32, this one float64). The many-environment form is :mod:`agrl.envs.gym_vector`
+(``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``). The task parameters are
+composed from ``conf/`` exactly as ``python -m agrl.train`` composes them (Hydra's compose API),
+so the YAML holds every default once.
 
 Episodes end with ``terminated=True`` on success, on leaving the airspace and
 when the decision budget is spent: the budget is part of the paper's MDP (it pays
@@ -23,7 +27,11 @@ when the decision budget is spent: the budget is part of the paper's MDP (it pay
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
+import os
+import sys
 from typing import Any
 
 import gymnasium
@@ -31,23 +39,22 @@ import numpy as np
 import torch
 from gymnasium import spaces
 
-from agrl.config import RewardConfig, SimulationConfig, TaskConfig, to_guidance_parameters
+from agrl.config import ConfigError, compose_config, config_options, load_config, to_guidance_parameters
 from agrl.core.aircraft import MANEUVER_NAMES
+from agrl.core.destinations import redraw_irregular_motion
+from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.observation import OBSERVATION_FEATURES, OBSERVATION_SIZE
 from agrl.core.parameters import GuidanceParameters, MotionKind
 from agrl.core.termination import Outcome
-from agrl.envs.guidance import NUM_ACTIONS, GuidanceEnv
+from agrl.envs.guidance import NUM_ACTIONS, SCENARIO_KEYS, GuidanceEnv
+from agrl.envs.rows import observation_row, potential_row, step_reward_row
+from agrl.reference import reference_decision
 
 ENV_ID = "agrl/Guidance-v0"
 
-TASKS = tuple(kind.value for kind in MotionKind)
-REWARDS = ("none", "continuous", "position", "both")  # Table 3's four rows, as conf/reward/*.yaml
-#: Destination defaults of conf/task/*.yaml (``speed``/``radius`` are null at the root there).
-TASK_DEFAULTS: dict[str, dict[str, float]] = {
-    "fixed": {},
-    "uniform": {"speed": 50.0},
-    "curved": {"speed": 20.0, "radius": 1_000.0, "turn_direction": 1},
-    "irregular": {},
+#: The destination parameters each task takes (their defaults live in conf/task/*.yaml, nowhere else).
+TASK_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "fixed": (), "uniform": ("speed",), "curved": ("speed", "radius", "turn_direction"), "irregular": (),
 }
 
 
@@ -76,51 +83,46 @@ def guidance_parameters(
 ) -> GuidanceParameters:
     """The :class:`GuidanceParameters` that ``python -m agrl.train task=... reward=...`` would use.
 
-    Raises ``ValueError`` (one line) naming a bad value and what is allowed.
+    Composed from ``conf/`` with Hydra's compose API (:func:`agrl.config.compose_config`), so every
+    default is the YAML's own. Raises ``ValueError`` (one line) naming a bad value and what is allowed.
     """
-    if task not in TASKS:
-        _fail("task", task, f"one of {', '.join(TASKS)}")
-    if reward not in REWARDS:
-        _fail("reward", reward, f"one of {', '.join(REWARDS)}")
+    tasks, rewards = config_options("task"), config_options("reward")
+    if task not in tasks:
+        _fail("task", task, f"one of {', '.join(tasks)}")
+    if reward not in rewards:
+        _fail("reward", reward, f"one of {', '.join(rewards)}")
     if not isinstance(compile, bool):
         _fail("compile", compile, "True or False")
-    defaults = TASK_DEFAULTS[task]
+    overrides = [f"task={task}", f"reward={reward}", f"simulation.compile={str(compile).lower()}"]
     given = {"speed": speed, "radius": radius, "turn_direction": turn_direction}
     for name, value in given.items():
-        if value is not None and name not in defaults:
-            users = [t for t, d in TASK_DEFAULTS.items() if name in d]
+        if value is not None and name not in TASK_PARAMETERS.get(task, ()):
+            users = [t for t, names in TASK_PARAMETERS.items() if name in names]
             _fail(name, value, f"task={task} has no destination {name} (only task={' or '.join(users)})")
-    values: dict[str, Any] = {}
-    if "speed" in defaults:
-        values["speed"] = _finite_positive(
-            "speed", defaults["speed"] if speed is None else speed, task, "destination speed in m/s"
-        )
-    if "radius" in defaults:
-        values["radius"] = _finite_positive(
-            "radius", defaults["radius"] if radius is None else radius, task, "turning radius in m"
-        )
-    if "turn_direction" in defaults:
-        direction = defaults["turn_direction"] if turn_direction is None else turn_direction
-        if isinstance(direction, bool) or direction not in (-1, 1):
+    if speed is not None:
+        overrides.append(f"speed={_finite_positive('speed', speed, task, 'destination speed in m/s')!r}")
+    if radius is not None:
+        overrides.append(f"radius={_finite_positive('radius', radius, task, 'turning radius in m')!r}")
+    if turn_direction is not None:
+        if isinstance(turn_direction, bool) or turn_direction not in (-1, 1):
             _fail("turn_direction", turn_direction, "+1 (counter-clockwise) or -1 (clockwise)")
-        values["turn_direction"] = int(direction)
-    task_config = TaskConfig(name=task, **values)  # the schema's own checks run here, as under Hydra
-
-    budget: dict[str, int] = {}
+        overrides.append(f"task.turn_direction={int(turn_direction)}")
     if max_decisions is not None:
         integral = isinstance(max_decisions, (int, np.integer)) and not isinstance(max_decisions, bool)
         if not integral or max_decisions < 1:
             _fail("max_decisions", max_decisions, "an integer >= 1 (decisions of 3 s per episode)")
-        budget["max_decisions"] = int(max_decisions)
-    simulation = SimulationConfig(compile=compile, **budget)
+        overrides.append(f"simulation.max_decisions={int(max_decisions)}")
+    return _composed_parameters(tuple(overrides))
 
-    # conf/reward/{none,continuous,position}.yaml inherit reward/both and switch the two shaping terms.
-    reward_config = RewardConfig(
-        name=reward,
-        use_continuous_action=reward in ("continuous", "both"),
-        use_position=reward in ("position", "both"),
-    )
-    return to_guidance_parameters(task_config, reward_config, simulation, compile=compile)
+
+@functools.lru_cache(maxsize=64)
+def _composed_parameters(overrides: tuple[str, ...]) -> GuidanceParameters:
+    # Composing takes a few tenths of a second; vector envs and SB3's make_vec_env ask for the same task often.
+    try:
+        config = load_config(compose_config(*overrides))
+    except ConfigError as error:
+        raise ValueError(str(error)) from None
+    return to_guidance_parameters(config.task, config.reward, config.simulation)
 
 
 def observation_bounds(params: GuidanceParameters) -> tuple[np.ndarray, np.ndarray]:
@@ -152,6 +154,10 @@ def observation_bounds(params: GuidanceParameters) -> tuple[np.ndarray, np.ndarr
     return low, high
 
 
+def _has_display() -> bool:
+    return sys.platform in ("darwin", "win32") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
 class GuidanceGymEnv(gymnasium.Env):
     """The paper's guidance MDP as an unbatched ``gymnasium.Env`` (``Discrete(7)`` maneuvers).
 
@@ -162,16 +168,27 @@ class GuidanceGymEnv(gymnasium.Env):
       ``turn_direction`` (curved: +1 counter-clockwise, -1 clockwise);
     - ``max_decisions``: the decision budget (default 200, ``conf/simulation/paper.yaml``);
     - ``reward``: ``none``, ``continuous``, ``position`` or ``both`` (default; Table 3);
-    - ``compile``: fuse the 20 ms step with ``torch.compile`` (default False: compiling costs
-      10-20 s of start-up, which a single environment rarely wins back).
+    - ``compile``: kept for the vector env (:mod:`agrl.envs.gym_vector`), where it fuses the
+      20 ms step with ``torch.compile``; this single env steps in Python floats and ignores it.
 
-    Seed with ``reset(seed=...)``. ``info`` holds ``outcome`` (``running``, ``success``,
-    ``out_of_airspace``, ``budget_exhausted``), ``aircraft_state`` (x, y, z, v, theta, psi, phi),
-    ``destination_state`` (x, y, z, psi), ``step_count``, ``instruction_count`` and
-    ``episode_return``.
+    Seed with ``reset(seed=...)``; start from explicit initial conditions with
+    ``reset(options={"aircraft_state": (x, y, z, v, theta, psi, phi), "destination_state": (x, y, z, psi),
+    "destination_speed": m/s, "destination_turn_rate": rad/s})`` (missing destination fields take the
+    task's). ``info`` holds ``outcome`` (``running``, ``success``, ``out_of_airspace``,
+    ``budget_exhausted``), ``aircraft_state`` (x, y, z, v, theta, psi, phi), ``destination_state``
+    (x, y, z, psi), ``step_count``, ``instruction_count`` and ``episode_return``.
+
+    ``render_mode="rgb_array"``: ``render()`` returns a ``(450, 800, 3)`` uint8 frame of the episode so far
+    (3-D view with the airspace box and a top view; :func:`agrl.plots.episode_frame`), what
+    ``gymnasium.wrappers.RecordVideo`` and stable-baselines3 need. ``render_mode="human"`` shows the
+    frames in a matplotlib window at every step and needs a display: without one (no ``DISPLAY`` or
+    ``WAYLAND_DISPLAY`` on Linux) ``metadata["render_modes"]`` lists only ``rgb_array`` and the constructor
+    raises ``ValueError`` for ``human`` (``gymnasium.make(..., render_mode="human")`` then applies
+    gymnasium's own ``HumanRendering`` wrapper, which needs pygame and a display).
     """
 
-    metadata = {"render_modes": []}
+    # "human" is offered only where a window can open (gymnasium's checker tries every listed mode).
+    metadata = {"render_modes": ["rgb_array", "human"] if _has_display() else ["rgb_array"], "render_fps": 4}
 
     def __init__(
         self,
@@ -184,33 +201,56 @@ class GuidanceGymEnv(gymnasium.Env):
         compile: bool = False,
         render_mode: str | None = None,
     ):
-        if render_mode is not None:
-            _fail("render_mode", render_mode, "None (this environment does not render)")
+        if render_mode not in (None, "rgb_array", "human"):
+            _fail("render_mode", render_mode, "None, 'rgb_array' or 'human'")
+        if render_mode == "human" and not _has_display():
+            _fail("render_mode", render_mode, "'human' needs a display (DISPLAY/WAYLAND_DISPLAY is not set): use "
+                  "'rgb_array' and show or record the frames")
         self.params = guidance_parameters(
             task=task, speed=speed, radius=radius, turn_direction=turn_direction,
             max_decisions=max_decisions, reward=reward, compile=compile,
         )
         self.render_mode = render_mode
-        self.env = GuidanceEnv(self.params, num_envs=1, device="cpu", seed=None)
+        # A one-row TorchRL env: its seeded generator draws the starts and the irregular redraws (same seeds,
+        # same episodes) and it builds scenario resets.
+        self.env = GuidanceEnv(dataclasses.replace(self.params, compile=False), num_envs=1, device="cpu", seed=None)
         self.action_space = spaces.Discrete(NUM_ACTIONS)
         low, high = observation_bounds(self.params)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self.maneuver_names = MANEUVER_NAMES
-        self._state = None  # the TorchRL row being simulated; None before reset and after the end
+        self._irregular = self.params.destination.kind is MotionKind.IRREGULAR
+        self._running = False  # False before reset and after the end of an episode
+        self._aircraft_path: list = []  # positions at each decision, kept only when rendering
+        self._destination_path: list = []
+        self._window = None  # the "human" mode's matplotlib figure and image
 
     # ------------------------------------------------------------------ helpers
-    def _observation(self, state) -> np.ndarray:
-        return state["observation"][0].numpy().astype(np.float32, copy=True)
+    def _observation(self) -> np.ndarray:
+        simulation = self.params.simulation
+        row = observation_row(self._aircraft, self._destination, self._last_action, simulation.airspace,
+                              simulation.limits)
+        return np.array(row, dtype=np.float32)
 
-    def _info(self, state) -> dict[str, Any]:
+    def _info(self) -> dict[str, Any]:
         return {
-            "outcome": Outcome(int(state["outcome"][0])).name.lower(),
-            "aircraft_state": state["aircraft_state"][0].numpy().copy(),
-            "destination_state": state["destination_state"][0].numpy().copy(),
-            "step_count": int(state["step_count"][0]),
-            "instruction_count": int(state["instruction_count"][0]),
-            "episode_return": float(state["episode_return"][0]),
+            "outcome": Outcome(self._outcome).name.lower(),
+            "aircraft_state": np.array(self._aircraft),
+            "destination_state": np.array(self._destination),
+            "step_count": self._step_count,
+            "instruction_count": self._instruction_count,
+            "episode_return": self._episode_return,
         }
+
+    def _potential(self, terminal: bool) -> float:
+        return potential_row(self._aircraft, self._destination, self._last_action, self._action_before_last,
+                             terminal, self.params.reward)
+
+    def _scenario(self, options: dict[str, Any]):
+        unknown = sorted(set(options) - set(SCENARIO_KEYS))
+        if unknown or "aircraft_state" not in options:
+            _fail("options", options, f"a dict with aircraft_state and optionally {', '.join(SCENARIO_KEYS[1:])}")
+        return self.env.scenario(**{key: torch.as_tensor(np.asarray(value, dtype=np.float32))
+                                    for key, value in options.items()})
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -218,28 +258,119 @@ class GuidanceGymEnv(gymnasium.Env):
         if seed is not None:
             self.env.set_seed(int(seed))
         with torch.no_grad():
-            self._state = self.env.reset()
-        return self._observation(self._state), self._info(self._state)
+            if options:
+                state = self._scenario(options)["scenario"]
+            else:  # GuidanceEnv._reset's draws, in its order, without its TensorDict and torch observation
+                params = self.params
+                speed, turn_rate = params.destination.initial_motion(1, self.env.generator, self.env.device)
+                start = torch.tensor([params.destination.start])
+                aircraft = sample_initial_aircraft(1, params.initial_state, start, self.env.generator)
+                state = {"aircraft_state": aircraft, "destination_state": start, "destination_speed": speed,
+                         "destination_turn_rate": turn_rate}
+        self._aircraft = tuple(state["aircraft_state"][0].tolist())
+        self._destination = tuple(state["destination_state"][0].tolist())
+        self._destination_speed = float(state["destination_speed"][0])
+        self._destination_turn_rate = float(state["destination_turn_rate"][0])
+        self._last_action = self._action_before_last = 0  # steady flight, as GuidanceEnv
+        self._step_count = self._instruction_count = 0
+        self._episode_return = 0.0
+        self._outcome = int(Outcome.RUNNING)
+        self._running = True
+        if self.render_mode is not None:
+            self._aircraft_path, self._destination_path = [self._aircraft], [self._destination]
+            if self.render_mode == "human":
+                self.render()
+        return self._observation(), self._info()
 
     def step(self, action):
-        if self._state is None:
+        if not self._running:
             raise RuntimeError("agrl/Guidance-v0: call reset() before step() (and after an episode ends)")
-        if not self.action_space.contains(action):
+        if not (isinstance(action, (int, np.integer)) and 0 <= action < NUM_ACTIONS):
             try:
                 action = int(action)
             except (TypeError, ValueError):
                 action = -1
             if not self.action_space.contains(action):
                 _fail("action", action, f"an integer maneuver index in [0, {NUM_ACTIONS - 1}]")
-        state = self._state.clone(False)
-        state["action"] = torch.tensor([int(action)], dtype=torch.int64)
-        with torch.no_grad():
-            following = self.env.step(state)["next"]
-        terminated = bool(following["terminated"][0, 0])
-        observation, info = self._observation(following), self._info(following)
-        reward = float(following["reward"][0, 0])
-        self._state = None if terminated else following
-        return observation, reward, terminated, False, info
+        action = int(action)
+        if self._irregular:  # GuidanceEnv._step's redraw, from the same generator
+            motion = self.params.destination
+            speed, turn_rate = redraw_irregular_motion(
+                torch.tensor([self._destination_speed]), torch.tensor([self._destination_turn_rate]),
+                motion.change_probability, motion.speed_range, motion.max_turn_rate, self.env.generator,
+            )
+            self._destination_speed, self._destination_turn_rate = float(speed[0]), float(turn_rate[0])
+        potential_before = self._potential(False)
+        result = reference_decision(self._aircraft, self._destination, self._destination_speed,
+                                    self._destination_turn_rate, action, self.params.simulation,
+                                    self.params.maneuvers)
+        self._step_count += 1
+        outcome = result.outcome
+        if outcome == Outcome.RUNNING and self._step_count >= self.params.max_decisions:
+            outcome = int(Outcome.BUDGET_EXHAUSTED)
+        terminated = outcome != Outcome.RUNNING
+        # An instruction is a decision that changes the maneuver being flown.
+        self._instruction_count += int(action != self._last_action)
+        self._aircraft, self._destination, self._outcome = result.aircraft_state, result.destination_state, outcome
+        self._action_before_last, self._last_action = self._last_action, action
+        reward = step_reward_row(outcome, potential_before, self._potential(terminated), self.params.reward)
+        self._episode_return += reward
+        self._running = not terminated
+        if self.render_mode is not None:
+            self._aircraft_path.append(self._aircraft)
+            self._destination_path.append(self._destination)
+            if self.render_mode == "human":
+                self.render()
+        return self._observation(), reward, terminated, False, self._info()
+
+    def render(self):
+        """The episode so far as an ``(H, W, 3)`` uint8 frame ("rgb_array"), or shown in a window ("human")."""
+        if self.render_mode is None:
+            return None
+        if not self._aircraft_path:
+            raise RuntimeError("agrl/Guidance-v0: call reset() before render()")
+        from agrl.plots import episode_frame
+
+        title = f"{self.params.destination.kind.value}  decision {self._step_count}/{self.params.max_decisions}"
+        frame = episode_frame(self._aircraft_path, self._destination_path, Outcome(self._outcome),
+                              self.params.simulation.airspace, f"{title}  return {self._episode_return:.2f}")
+        if self.render_mode == "rgb_array":
+            return frame
+        self._show(frame)
+        return None
+
+    def _show(self, frame: np.ndarray) -> None:
+        import matplotlib.pyplot as plt
+
+        if self._window is None:
+            _use_interactive_matplotlib()
+            figure = plt.figure(figsize=(frame.shape[1] / 100, frame.shape[0] / 100), dpi=100)
+            axes = figure.add_axes((0, 0, 1, 1))
+            axes.set_axis_off()
+            self._window = (figure, axes.imshow(frame))
+            plt.show(block=False)
+        else:
+            self._window[1].set_data(frame)
+        plt.pause(1.0 / self.metadata["render_fps"])
 
     def close(self):
-        self._state = None
+        self._running = False
+        if self._window is not None:
+            import matplotlib.pyplot as plt
+
+            plt.close(self._window[0])
+            self._window = None
+
+
+def _use_interactive_matplotlib() -> None:
+    """Switch matplotlib (which agrl.plots sets to the file-only Agg) to the first interactive backend that loads."""
+    import matplotlib.pyplot as plt
+
+    for backend in ("macosx", "qtagg", "gtk4agg", "gtk3agg", "tkagg", "wxagg"):
+        try:
+            plt.switch_backend(backend)
+            return
+        except (ImportError, RuntimeError, ValueError):
+            continue
+    raise RuntimeError("render_mode='human': no interactive matplotlib backend (Qt, GTK, Tk, wx) could be loaded; "
+                       "use render_mode='rgb_array'")

@@ -17,6 +17,7 @@ from tensordict import TensorDictBase
 from torchrl.record.loggers import TensorboardLogger
 
 from agrl.core.termination import Outcome
+from agrl.envs.guidance import REWARD_PART_KEYS
 
 #: The columns of ``metrics.csv`` beyond iteration, frames and wall time.
 CSV_COLUMNS = ("train/success_rate", "eval/success_rate", "train/instructions_per_episode", "train/reuse_fraction",
@@ -38,13 +39,21 @@ def flatten_config(config: dict[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 def episode_statistics(data: TensorDictBase) -> dict[str, float]:
-    """Outcome rates and per-episode means over the episodes that ended in ``data``."""
+    """Outcome rates and per-episode means over the episodes that ended in ``data``.
+
+    The reward's parts (``train/reward_*``, keys of :data:`REWARD_PART_KEYS`) are means per decision over
+    every transition of the iteration, so they add up to ``train/reward_per_decision``, the mean of what PPO
+    was trained on (finished or not): a user sees which term drives learning.
+    """
+    reward_parts = {f"train/{key}": float(data["next", key].mean()) for key in REWARD_PART_KEYS}
+    reward_parts["train/reward_per_decision"] = float(data["next", "reward"].mean())
     done = data["next", "done"].squeeze(-1)
     finished = int(done.sum())
     if finished == 0:
-        return {"train/episodes": 0}
+        return {"train/episodes": 0, **reward_parts}
     outcome = data["next", "outcome"][done]
     return {
+        **reward_parts,
         "train/episodes": finished,
         "train/success_rate": float((outcome == Outcome.SUCCESS).float().mean()),
         "train/out_of_airspace_rate": float((outcome == Outcome.OUT_OF_AIRSPACE).float().mean()),

@@ -28,7 +28,7 @@ from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
 
 from agrl.config import TrainConfig, task_label, to_guidance_parameters
 from agrl.envs.guidance import GuidanceEnv
-from agrl.plots import plot_trajectories
+from agrl.plots import plot_trajectories, trajectory_image
 from agrl.rl.checkpoint import (
     CheckpointError,
     load_checkpoint,
@@ -246,7 +246,13 @@ class Trainer:
         return summarise(records), records
 
     def _periodic_evaluation(self) -> dict[str, float]:
-        evaluation, _ = self.evaluate()
+        """The fixed periodic episode set; its first episodes' trajectories also go to the dashboard's Images."""
+        picture = self.cfg.eval.trajectory_image
+        evaluation, records = self.evaluate(record_trajectories=picture)
+        if picture:
+            title = f"{task_label(self.cfg.task)}, {self.cfg.method.name}: {self.counters.frames:,} decisions trained"
+            image = trajectory_image(records, self.params.simulation.airspace, title=title)
+            self.metrics.log_image("eval/trajectories", image, self.counters.frames)
         return {f"eval/{key}": evaluation[key]
                 for key in ("success_rate", "instructions_per_episode", "decisions_per_episode", "mean_return")}
 

@@ -20,9 +20,9 @@ import pytest
 import torch
 
 from agrl.baselines import BASELINE_FILE
-from agrl.config import RewardConfig, SimulationConfig, TaskConfig, to_guidance_parameters
+from agrl.config import saved_guidance_parameters
 from agrl.envs.guidance import GuidanceEnv
-from agrl.evaluate import _structured, load_agent
+from agrl.evaluate import load_agent
 from agrl.rl.evaluation import run_episodes, summarise
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
@@ -39,8 +39,7 @@ def record() -> dict:
 def rerun(record):
     """(summary, records) of the baseline on the record's own episodes, eager simulator."""
     actor, saved, _ = load_agent("baseline")
-    params = to_guidance_parameters(_structured(TaskConfig, saved["task"]), _structured(RewardConfig, saved["reward"]),
-                                    _structured(SimulationConfig, saved["simulation"]), compile=False)
+    params = saved_guidance_parameters(saved, compile=False)
     env = GuidanceEnv(params, num_envs=record["episodes"], seed=record["evaluation_seed"])
     records = run_episodes(env, actor)
     return summarise(records), records

@@ -15,6 +15,7 @@ from agrl.core.reward import (
     potential,
     shaping_reward,
     step_reward,
+    switch_cost_reward,
     termination_reward,
 )
 from agrl.core.termination import Outcome
@@ -234,3 +235,41 @@ def test_env_reward_switches():
     assert both == pytest.approx([c + p for c, p in zip(only_c, only_p, strict=True)], abs=1e-5)
     # Flying towards the destination: the position shaping is positive on the first (steady) step.
     assert only_p[0] > 0
+
+
+# ---------------------------------------------------------------------------- switch cost (not in the paper)
+def test_switch_cost_reward_by_hand():
+    # An episode starts in steady flight (0); each decision compares with the maneuver being flown.
+    actions = torch.tensor([0, 3, 3, 1, 1, 0])
+    previous = torch.tensor([0, 0, 3, 3, 1, 1])
+    got = switch_cost_reward(actions, previous, RewardParameters(switch_cost=0.25))
+    assert got.tolist() == [0.0, -0.25, 0.0, -0.25, 0.0, -0.25]
+    # A first decision that commands a maneuver is an instruction too.
+    first = switch_cost_reward(torch.tensor([2]), torch.tensor([0]), RewardParameters(switch_cost=0.25))
+    assert first.tolist() == [-0.25]
+    # Off by default, so the paper's four variants are unchanged.
+    assert switch_cost_reward(actions, previous, RewardParameters()).tolist() == [0.0] * 6
+
+
+def test_env_switch_cost_adds_minus_cost_per_instruction():
+    start = torch.tensor([-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0])
+    actions = [2, 2, 0, 5, 5, 6]  # instructions: 0->2, 2->0, 0->5, 5->6 = 4
+    cost = 0.4
+
+    def rewards(reward_params):
+        env = GuidanceEnv(GuidanceParameters(reward=reward_params), num_envs=1, seed=0)
+        td = env.reset(env.scenario(aircraft_state=start))
+        out = []
+        for action in actions:
+            td["action"] = torch.tensor([action])
+            td = env.step(td)
+            assert td["next", "outcome"].tolist() == [Outcome.RUNNING]
+            out.append(float(td["next", "reward"]))
+            td = env.step_mdp(td)
+        return out, int(td["instruction_count"])
+
+    plain, _ = rewards(RewardParameters())
+    priced, instructions = rewards(RewardParameters(switch_cost=cost))
+    assert instructions == 4
+    expected = [p - cost * c for p, c in zip(plain, [1, 0, 1, 1, 0, 1], strict=True)]
+    assert priced == pytest.approx(expected, abs=1e-6)

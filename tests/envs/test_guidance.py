@@ -12,9 +12,10 @@ from torchrl.envs.utils import check_env_specs
 
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
 from agrl.core.parameters import DestinationMotion
+from agrl.core.reward import RewardParameters
 from agrl.core.termination import Outcome
 from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
-from agrl.envs.guidance import STATE_KEYS
+from agrl.envs.guidance import REWARD_PART_KEYS, STATE_KEYS
 
 
 def make_params(kind: MotionKind = MotionKind.FIXED, **overrides) -> GuidanceParameters:
@@ -41,6 +42,31 @@ def test_check_env_specs(kind):
     assert td["observation"].shape == (2, OBSERVATION_SIZE)
     assert env.action_spec.shape == (2,)
     assert env.action_spec.space.n == 7
+
+
+@pytest.mark.parametrize(
+    "kind,reward",
+    [*((kind, RewardParameters(switch_cost=0.3)) for kind in MotionKind),
+     (MotionKind.FIXED, RewardParameters(use_continuous_action=False, use_position=False, switch_cost=0.3)),
+     (MotionKind.FIXED, RewardParameters(switch_cost=1.5, gamma=0.9, use_position=False))],
+)
+def test_reward_parts_sum_to_the_reward(kind, reward):
+    env = GuidanceEnv(make_params(kind, reward=reward, max_decisions=8), num_envs=6, seed=3)
+    td = env.rollout(20, policy=cycling_policy, break_when_any_done=False)
+    step = td["next"]
+    parts = {key: step[key] for key in REWARD_PART_KEYS}
+    torch.testing.assert_close(sum(parts.values()), step["reward"].squeeze(-1), atol=1e-5, rtol=0)
+    done = step["done"].squeeze(-1)
+    assert done.any()
+    # Termination pays only on the last step of an episode; the switch cost on each instruction.
+    assert (parts["reward_termination"][~done] == 0).all()
+    assert (parts["reward_termination"][done] != 0).all()
+    # td["last_action"] is the maneuver flown before each step (0, steady flight, after a reset).
+    changed = (td["action"] != td["last_action"]).float()
+    torch.testing.assert_close(parts["reward_switch_cost"], -reward.switch_cost * changed)
+    for key, used in (("reward_action_shaping", reward.use_continuous_action),
+                      ("reward_position_shaping", reward.use_position)):
+        assert bool((parts[key] != 0).any()) == used, key
 
 
 def test_rejects_an_empty_decision_budget():

@@ -7,11 +7,9 @@ import csv
 import numpy as np
 import pytest
 import torch
-from tensordict import TensorDict, TensorDictBase
+from tensordict import TensorDictBase
 
-from agrl.core.termination import Outcome
 from agrl.rl.checkpoint import load_checkpoint
-from agrl.rl.metrics import episode_statistics
 from agrl.rl.trainer import Trainer, TrainingDiverged
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
@@ -50,33 +48,6 @@ def assert_bitwise_equal(a, b, where: str = "payload") -> None:
 def read_csv(path):
     with path.open(newline="") as file:
         return list(csv.DictReader(file))
-
-
-# ---------------------------------------------------------------------------- episode statistics
-def test_episode_statistics_counts_only_finished_rows():
-    # Two envs x three steps; three rows end an episode: success, out of airspace, success.
-    done = torch.tensor([[False, True, False], [True, False, True]])
-    outcome = torch.tensor([[Outcome.RUNNING, Outcome.SUCCESS, Outcome.RUNNING],
-                            [Outcome.OUT_OF_AIRSPACE, Outcome.RUNNING, Outcome.SUCCESS]])
-    episode_return = torch.tensor([[1.0, 10.0, 99.0], [-20.0, 99.0, 40.0]])
-    step_count = torch.tensor([[1, 2, 1], [4, 1, 2]])
-    instruction_count = torch.tensor([[0, 1, 7], [3, 7, 2]])
-    data = TensorDict({"next": TensorDict({
-        "done": done.unsqueeze(-1), "outcome": outcome, "episode_return": episode_return,
-        "step_count": step_count, "instruction_count": instruction_count,
-    }, batch_size=[2, 3])}, batch_size=[2, 3])
-
-    stats = episode_statistics(data)
-    assert stats["train/episodes"] == 3
-    assert stats["train/success_rate"] == pytest.approx(2 / 3)
-    assert stats["train/out_of_airspace_rate"] == pytest.approx(1 / 3)
-    assert stats["train/time_out_rate"] == 0.0
-    assert stats["train/episode_reward"] == pytest.approx((10.0 - 20.0 + 40.0) / 3)
-    assert stats["train/decisions_per_episode"] == pytest.approx((2 + 4 + 2) / 3)
-    assert stats["train/instructions_per_episode"] == pytest.approx((1 + 3 + 2) / 3)
-
-    data["next", "done"] = torch.zeros_like(data["next", "done"])
-    assert episode_statistics(data) == {"train/episodes": 0}
 
 
 # ---------------------------------------------------------------------------- determinism

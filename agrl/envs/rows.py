@@ -1,0 +1,109 @@
+"""One-row (Python float) forms of the policy observation and the reward, for unbatched callers.
+
+On one row, the batched torch functions of :mod:`agrl.core` cost a few microseconds per
+tensor operation: one 3 s decision (150 integration steps, about a hundred operations each)
+then takes tens of milliseconds, and the observation alone a few hundred microseconds. The
+unbatched gymnasium environment (:mod:`agrl.envs.gym`) and the deployable guide
+(:mod:`agrl.guide`) therefore run one row in plain Python floats:
+
+- the decision itself is :func:`agrl.reference.reference_decision`, the pure-Python form of
+  :class:`agrl.core.simulation.DecisionSimulator` that ``tests/test_reference.py`` checks
+  against it (equal to rounding in float64);
+- :func:`observation_row` is :func:`agrl.core.observation.policy_observation`, term by term;
+- :func:`potential_row` and :func:`step_reward_row` are :func:`agrl.core.reward.potential`
+  and :func:`agrl.core.reward.step_reward` (equations 5-11).
+
+``tests/envs/test_rows.py`` checks each against its torch original in float64 (equal to 1e-12)
+on random states, so a change in :mod:`agrl.core` that is not made here fails a test.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from agrl.core.aircraft import MANEUVER_NAMES, AircraftLimits
+from agrl.core.observation import NEAR_ALTITUDE_SCALE, NEAR_DISTANCE_SCALE
+from agrl.core.reward import RewardParameters
+from agrl.core.termination import Airspace, Outcome
+from agrl.reference import wrap_angle
+
+NUM_MANEUVERS = len(MANEUVER_NAMES)
+
+
+def observation_row(
+    aircraft_state: Sequence[float],
+    destination_state: Sequence[float],
+    last_action: int,
+    airspace: Airspace,
+    limits: AircraftLimits,
+) -> list[float]:
+    """:func:`agrl.core.observation.policy_observation` for one row, as a list of floats (float64)."""
+    x, y, z, speed, flight_path_angle, heading, bank = aircraft_state
+    dest_x, dest_y, dest_z, dest_heading = destination_state
+    half_width = 0.5 * max(airspace.x_max - airspace.x_min, airspace.y_max - airspace.y_min)
+    height = airspace.z_max - airspace.z_min
+
+    dx, dy = dest_x - x, dest_y - y
+    distance = math.sqrt(dx * dx + dy * dy)
+    bearing = wrap_angle(math.atan2(dy, dx) - heading)
+    heading_difference = wrap_angle(dest_heading - heading)
+    cos_dest, sin_dest = math.cos(dest_heading), math.sin(dest_heading)
+    along_track = -(cos_dest * dx + sin_dest * dy)
+    cross_track = sin_dest * dx - cos_dest * dy
+    features = [
+        distance / half_width,
+        math.sin(bearing),
+        math.cos(bearing),
+        (dest_z - z) / height,
+        math.tanh((dest_z - z) / NEAR_ALTITUDE_SCALE),
+        math.tanh(distance / NEAR_DISTANCE_SCALE),
+        math.sin(heading_difference),
+        math.cos(heading_difference),
+        along_track / half_width,
+        cross_track / half_width,
+        2.0 * (speed - limits.min_speed) / (limits.max_speed - limits.min_speed) - 1.0,
+        flight_path_angle / limits.max_flight_path_angle,
+        bank / (0.5 * math.pi),
+        2.0 * (z - airspace.z_min) / (airspace.z_max - airspace.z_min) - 1.0,
+        2.0 * (x - airspace.x_min) / (airspace.x_max - airspace.x_min) - 1.0,
+        2.0 * (y - airspace.y_min) / (airspace.y_max - airspace.y_min) - 1.0,
+    ]
+    one_hot = [0.0] * NUM_MANEUVERS
+    one_hot[last_action] = 1.0
+    return features + one_hot
+
+
+def potential_row(
+    aircraft_state: Sequence[float],
+    destination_state: Sequence[float],
+    last_action: int,
+    action_before_last: int,
+    terminal: bool,
+    params: RewardParameters,
+) -> float:
+    """:func:`agrl.core.reward.potential` (equations 8-11) for one row."""
+    if terminal:
+        return 0.0
+    value = 0.0
+    if params.use_continuous_action:  # equation 9
+        value += params.action_change if last_action != action_before_last else params.action_hold
+    if params.use_position:  # equations 10-11
+        dx = aircraft_state[0] - destination_state[0]
+        dy = aircraft_state[1] - destination_state[1]
+        value += (
+            params.distance_weight * -math.sqrt(dx * dx + dy * dy)
+            + params.heading_weight * math.cos(wrap_angle(aircraft_state[5] - destination_state[3]))
+            + params.altitude_weight * -abs(aircraft_state[2] - destination_state[2])
+        )
+    return value
+
+
+def step_reward_row(outcome: int, potential_before: float, potential_after: float, params: RewardParameters) -> float:
+    """:func:`agrl.core.reward.step_reward` (equations 5-7) for one row."""
+    termination = {
+        Outcome.SUCCESS: params.success,
+        Outcome.OUT_OF_AIRSPACE: params.out_of_airspace,
+        Outcome.BUDGET_EXHAUSTED: params.budget_exhausted,
+    }.get(Outcome(outcome), 0.0)
+    return termination + params.gamma * potential_after - potential_before

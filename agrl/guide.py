@@ -1,0 +1,230 @@
+"""A trained agent as a plain function from the raw state to a maneuver, for use outside training.
+
+::
+
+    from agrl.guide import Guide
+    guide = Guide.load("baseline")          # or a checkpoint file, a run directory, a .onnx or .pt2 export
+    maneuver = guide.instruct((x, y, z, v, theta, psi, phi), (x_d, y_d, z_d, psi_d), last_action)   # int
+    maneuvers = guide.instruct_batch(aircraft (N, 7), destination (N, 4), last_actions (N,))      # (N,) int64
+
+The raw state is the environment's (``info["aircraft_state"]``, ``info["destination_state"]`` and the
+maneuver being flown; metres, m/s, radians). The answer is the TorchRL actor's deterministic action
+(the argmax of its logits, :func:`agrl.rl.models.make_actor`), and the observation is
+:func:`agrl.core.observation.policy_observation` with the airspace and aircraft limits the agent was
+trained with:
+
+- from a checkpoint, ``instruct_batch`` runs that function and the actor's own network in torch;
+  ``instruct`` (one query, where torch's per-operation cost would dominate) runs the one-row form
+  :func:`agrl.envs.rows.observation_row` (tested equal to it) and three numpy matrix-vector products;
+- an ONNX (``onnxruntime``) or ``torch.export`` file holds :class:`GuidePolicy`: the same observation
+  function, network and argmax as one graph with raw-state inputs ``aircraft_state`` ``(N, 7)``
+  float32, ``destination_state`` ``(N, 4)`` float32, ``last_action`` ``(N,)`` int64 and output
+  ``maneuver`` ``(N,)`` int64, so it runs without agrl. Write them with ``python -m agrl.export``.
+
+Checkpoints are read with :func:`agrl.rl.checkpoint.load_checkpoint` (no code-executing unpickling).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from agrl.core.aircraft import MANEUVER_NAMES, AircraftLimits
+from agrl.core.observation import policy_observation
+from agrl.core.termination import Airspace
+from agrl.envs.rows import observation_row
+
+NUM_MANEUVERS = len(MANEUVER_NAMES)
+#: Key of the JSON metadata (airspace, limits, source) stored in ONNX and torch.export files.
+METADATA_KEY = "agrl_guide"
+INPUT_NAMES = ("aircraft_state", "destination_state", "last_action")
+OUTPUT_NAME = "maneuver"
+_ACTIVATIONS = {"tanh": np.tanh, "relu": lambda value: np.maximum(value, 0.0),
+                "elu": lambda value: np.where(value > 0, value, np.expm1(np.minimum(value, 0.0)))}
+
+
+class GuideError(ValueError):
+    """A guide cannot be loaded or was asked a malformed question; the message names the value."""
+
+
+class GuidePolicy(nn.Module):
+    """Raw state -> maneuver index: ``policy_observation``, the actor's network, argmax (deterministic action)."""
+
+    def __init__(self, network: nn.Module, airspace: Airspace, limits: AircraftLimits):
+        super().__init__()
+        self.network = network
+        self.airspace = airspace
+        self.limits = limits
+
+    def forward(self, aircraft_state: torch.Tensor, destination_state: torch.Tensor,
+                last_action: torch.Tensor) -> torch.Tensor:
+        observation = policy_observation(aircraft_state, destination_state, last_action, self.airspace, self.limits)
+        return self.network(observation).argmax(-1)
+
+
+def _metadata(airspace: Airspace, limits: AircraftLimits, source: str) -> str:
+    return json.dumps({"airspace": dataclasses.asdict(airspace), "limits": dataclasses.asdict(limits),
+                       "source": source})
+
+
+def _from_metadata(text: str, path: Path) -> tuple[Airspace, AircraftLimits, str]:
+    try:
+        values = json.loads(text)
+        return Airspace(**values["airspace"]), AircraftLimits(**values["limits"]), values.get("source", str(path))
+    except (ValueError, KeyError, TypeError) as error:
+        raise GuideError(f"{path}: not an agrl guide export (bad {METADATA_KEY} metadata: {error})") from None
+
+
+def load_policy(reference: str | Path = "baseline") -> tuple[GuidePolicy, str, str]:
+    """(:class:`GuidePolicy`, activation name, checkpoint path) of ``baseline``, a checkpoint or a run directory."""
+    from agrl.config import saved_guidance_parameters
+    from agrl.evaluate import load_agent
+
+    actor, saved, path = load_agent(str(reference))
+    params = saved_guidance_parameters(saved)
+    networks = [module for module in actor.modules() if isinstance(module, nn.Sequential)]
+    policy = GuidePolicy(networks[0], params.simulation.airspace, params.simulation.limits).eval()
+    return policy, saved["agent"]["activation"], str(path)
+
+
+def _rows(values, width: int, name: str) -> np.ndarray:
+    array = np.asarray(values, dtype=np.float32)
+    if array.ndim != 2 or array.shape[1] != width or not np.isfinite(array).all():
+        raise GuideError(f"{name} of shape {array.shape} is not allowed: (N, {width}) finite numbers")
+    return array
+
+
+def _actions(values, count: int) -> np.ndarray:
+    array = np.asarray(values)
+    if (array.shape != (count,) or not np.issubdtype(array.dtype, np.integer)
+            or not bool(((array >= 0) & (array < NUM_MANEUVERS)).all())):
+        raise GuideError(f"last_action of shape {array.shape} and dtype {array.dtype} is not allowed: "
+                         f"({count},) integers in [0, {NUM_MANEUVERS - 1}]")
+    return array.astype(np.int64, copy=False)
+
+
+class Guide:
+    """A trained agent answering "which maneuver now?"; build it with :meth:`Guide.load`."""
+
+    def __init__(self, airspace: Airspace, limits: AircraftLimits, source: str, kind: str,
+                 policy: GuidePolicy | None = None, activation: str = "tanh", runner=None):
+        self.airspace, self.limits, self.source, self.kind = airspace, limits, source, kind
+        self.policy = policy  # the torch GuidePolicy (checkpoint and torch_export kinds)
+        self._runner = runner  # an onnxruntime session or a torch.export module
+        self._layers: list[tuple[np.ndarray, np.ndarray]] = []
+        if policy is not None and kind == "checkpoint":
+            linear = [module for module in policy.network.modules() if isinstance(module, nn.Linear)]
+            self._layers = [(layer.weight.detach().numpy().copy(), layer.bias.detach().numpy().copy())
+                            for layer in linear]
+            self._activation = _ACTIVATIONS[activation]
+
+    # ------------------------------------------------------------------ loading
+    @classmethod
+    def load(cls, reference: str | Path = "baseline") -> Guide:
+        """``baseline``, a checkpoint file or run directory, or an export (``.onnx``, ``.pt2``)."""
+        path = Path(reference)
+        if path.suffix == ".onnx":
+            return cls._load_onnx(path)
+        if path.suffix == ".pt2":
+            return cls._load_torch_export(path)
+        policy, activation, source = load_policy(reference)
+        return cls(policy.airspace, policy.limits, source, "checkpoint", policy, activation)
+
+    @classmethod
+    def _load_onnx(cls, path: Path) -> Guide:
+        try:
+            import onnxruntime
+        except ImportError:
+            raise GuideError(f"{path}: running an ONNX guide needs onnxruntime (pip install 'agrl[export]')") from None
+        if not path.is_file():
+            raise GuideError(f"{path}: no such ONNX file")
+        options = onnxruntime.SessionOptions()
+        options.intra_op_num_threads = 1  # one query is far below the cost of waking threads
+        try:
+            session = onnxruntime.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
+        except Exception as error:  # onnxruntime raises its own types for foreign or corrupt files
+            raise GuideError(f"{path}: not a readable ONNX model: {str(error).splitlines()[0]}") from None
+        metadata = session.get_modelmeta().custom_metadata_map
+        if METADATA_KEY not in metadata:
+            raise GuideError(f"{path}: not an agrl guide export (no {METADATA_KEY} metadata)")
+        airspace, limits, source = _from_metadata(metadata[METADATA_KEY], path)
+        return cls(airspace, limits, source, "onnx", runner=session)
+
+    @classmethod
+    def _load_torch_export(cls, path: Path) -> Guide:
+        if not path.is_file():
+            raise GuideError(f"{path}: no such torch.export file")
+        extra = {METADATA_KEY: ""}
+        try:
+            program = torch.export.load(str(path), extra_files=extra)
+        except Exception as error:  # torch raises many types for foreign or corrupt archives
+            raise GuideError(f"{path}: not a readable torch.export archive: {str(error).splitlines()[0]}") from None
+        if not extra[METADATA_KEY]:
+            raise GuideError(f"{path}: not an agrl guide export (no {METADATA_KEY} metadata)")
+        airspace, limits, source = _from_metadata(extra[METADATA_KEY], path)
+        return cls(airspace, limits, source, "torch_export", runner=program.module())
+
+    # ------------------------------------------------------------------ questions
+    def instruct(self, aircraft_state, destination_state, last_action) -> int:
+        """The maneuver index for one aircraft (x, y, z, v, theta, psi, phi) and destination (x, y, z, psi)."""
+        try:
+            aircraft = [float(value) for value in aircraft_state]
+            destination = [float(value) for value in destination_state]
+        except (TypeError, ValueError):
+            raise GuideError(f"aircraft_state={aircraft_state!r}, destination_state={destination_state!r} are not "
+                             "allowed: 7 and 4 numbers") from None
+        if len(aircraft) != 7 or len(destination) != 4 or not all(map(math.isfinite, aircraft + destination)):
+            raise GuideError(f"aircraft_state={aircraft_state!r}, destination_state={destination_state!r} are not "
+                             "allowed: 7 and 4 finite numbers")
+        if isinstance(last_action, bool) or not isinstance(last_action, (int, np.integer)) or not (
+                0 <= last_action < NUM_MANEUVERS):
+            raise GuideError(f"last_action={last_action!r} is not allowed: an integer in [0, {NUM_MANEUVERS - 1}]")
+        if not self._layers:
+            return int(self._run(np.array([aircraft], np.float32), np.array([destination], np.float32),
+                                 np.array([last_action], np.int64))[0])
+        value = np.array(observation_row(aircraft, destination, int(last_action), self.airspace, self.limits),
+                         dtype=np.float32)
+        for weight, bias in self._layers[:-1]:
+            value = self._activation(weight @ value + bias)
+        weight, bias = self._layers[-1]
+        return int(np.argmax(weight @ value + bias))
+
+    def instruct_batch(self, aircraft_state, destination_state, last_action) -> np.ndarray:
+        """Maneuver indices ``(N,)`` int64 for aircraft ``(N, 7)``, destinations ``(N, 4)``, last actions ``(N,)``."""
+        aircraft = _rows(aircraft_state, 7, "aircraft_state")
+        destination = _rows(destination_state, 4, "destination_state")
+        if destination.shape[0] != aircraft.shape[0]:
+            raise GuideError(f"destination_state of shape {destination.shape} is not allowed: one row per aircraft "
+                             f"({aircraft.shape[0]})")
+        return self._run(aircraft, destination, _actions(last_action, aircraft.shape[0]))
+
+    def _run(self, aircraft: np.ndarray, destination: np.ndarray, last_action: np.ndarray) -> np.ndarray:
+        if self.kind == "onnx":
+            inputs = dict(zip(INPUT_NAMES, (aircraft, destination, last_action), strict=True))
+            return self._runner.run([OUTPUT_NAME], inputs)[0]
+        module = self.policy if self.kind == "checkpoint" else self._runner
+        with torch.no_grad():
+            return module(torch.from_numpy(aircraft), torch.from_numpy(destination),
+                          torch.from_numpy(last_action)).numpy()
+
+    def __repr__(self) -> str:
+        return f"Guide(kind={self.kind!r}, source={self.source!r})"
+
+
+def example_inputs(count: int = 2) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Raw-state inputs of the right shapes and dtypes (for tracing an export)."""
+    aircraft = torch.zeros(count, 7)
+    aircraft[:, 3] = 200.0
+    return aircraft, torch.zeros(count, 4), torch.zeros(count, dtype=torch.int64)
+
+
+def export_metadata(policy: GuidePolicy, source: str) -> dict[str, Any]:
+    """``{METADATA_KEY: json}``: what :meth:`Guide.load` needs beside the graph (airspace, limits, source)."""
+    return {METADATA_KEY: _metadata(policy.airspace, policy.limits, source)}

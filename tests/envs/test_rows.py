@@ -1,0 +1,69 @@
+"""The one-row Python forms (agrl/envs/rows.py) compute what agrl.core's batched torch functions compute."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from agrl.core.aircraft import AircraftLimits
+from agrl.core.observation import OBSERVATION_SIZE, policy_observation
+from agrl.core.reward import RewardParameters, potential, step_reward
+from agrl.core.termination import Airspace, Outcome
+from agrl.envs.rows import observation_row, potential_row, step_reward_row
+
+
+def random_states(count: int, seed: int = 0):
+    """Aircraft and destinations all over (and a little outside) the airspace, any angles, any last actions."""
+    generator = torch.Generator().manual_seed(seed)
+
+    def uniform(low, high):
+        return low + (high - low) * torch.rand(count, generator=generator, dtype=torch.float64)
+
+    aircraft = torch.stack((uniform(-10_500, 10_500), uniform(-10_500, 10_500), uniform(-100, 5_100),
+                            uniform(100, 250), uniform(-0.52, 0.52), uniform(-7, 7), uniform(-1.2, 1.2)), -1)
+    destination = torch.stack((uniform(-10_000, 10_000), uniform(-10_000, 10_000), uniform(0, 5_000),
+                               uniform(-7, 7)), -1)
+    actions = torch.randint(0, 7, (2, count), generator=generator)
+    return aircraft, destination, actions[0], actions[1]
+
+
+def test_observation_row_equals_policy_observation():
+    airspace, limits = Airspace(), AircraftLimits()
+    aircraft, destination, last_action, _ = random_states(500)
+    expected = policy_observation(aircraft, destination, last_action, airspace, limits)
+    assert expected.dtype == torch.float64 and expected.shape == (500, OBSERVATION_SIZE)
+    for index in range(500):
+        row = observation_row(aircraft[index].tolist(), destination[index].tolist(), int(last_action[index]),
+                              airspace, limits)
+        torch.testing.assert_close(torch.tensor(row, dtype=torch.float64), expected[index], rtol=0, atol=1e-12)
+
+
+def test_observation_row_follows_a_different_airspace():
+    airspace = Airspace(x_min=-3_000.0, x_max=5_000.0, y_min=-1_000.0, y_max=2_000.0, z_min=100.0, z_max=900.0)
+    limits = AircraftLimits(min_speed=80.0, max_speed=300.0, max_flight_path_angle=0.3)
+    aircraft, destination, last_action, _ = random_states(50, seed=1)
+    expected = policy_observation(aircraft, destination, last_action, airspace, limits)
+    for index in range(50):
+        row = observation_row(aircraft[index].tolist(), destination[index].tolist(), int(last_action[index]),
+                              airspace, limits)
+        torch.testing.assert_close(torch.tensor(row, dtype=torch.float64), expected[index], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize(("continuous", "position"), [(True, True), (True, False), (False, True), (False, False)])
+def test_potential_and_reward_rows_equal_the_torch_reward(continuous, position):
+    params = RewardParameters(use_continuous_action=continuous, use_position=position)
+    aircraft, destination, last_action, before_last = random_states(200, seed=2)
+    before_last[::3] = last_action[::3]  # held actions too (equation 9's c5)
+    terminal = torch.arange(200) % 5 == 0
+    outcome = torch.arange(200) % len(Outcome)
+    expected_potential = potential(aircraft, destination, last_action, before_last, terminal, params)
+    # float64 inputs: the continuous-action term is float32 in agrl.core (c4, c5 are exact in neither)
+    expected_reward = step_reward(outcome, expected_potential.roll(1), expected_potential, params)
+    for index in range(200):
+        value = potential_row(aircraft[index].tolist(), destination[index].tolist(), int(last_action[index]),
+                              int(before_last[index]), bool(terminal[index]), params)
+        assert math.isclose(value, float(expected_potential[index]), rel_tol=0, abs_tol=1e-7)
+        reward = step_reward_row(int(outcome[index]), float(expected_potential.roll(1)[index]), value, params)
+        assert math.isclose(reward, float(expected_reward[index]), rel_tol=0, abs_tol=1e-6)

@@ -1,0 +1,99 @@
+"""``python -m agrl.export``: checkpoint, ONNX and torch.export formats, each answering what the TorchRL actor does."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+from test_guide import actor_maneuvers, random_raw_states
+
+from agrl.export import main
+from agrl.guide import Guide, GuideError
+
+STATES = 10_000
+SINGLE_QUERIES = 500
+
+
+@pytest.fixture(scope="module")
+def exports(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("exports")
+    paths = {"checkpoint": folder / "slim.pt", "onnx": folder / "guide.onnx", "torch_export": folder / "guide.pt2"}
+    for format_name, path in paths.items():
+        assert main(["baseline", str(path), "--format", format_name]) == 0
+        assert path.is_file()
+    return paths
+
+
+@pytest.fixture(scope="module")
+def states():
+    aircraft, destination, last_action = random_raw_states(STATES, seed=5)
+    return aircraft, destination, last_action, actor_maneuvers("baseline", aircraft, destination, last_action)
+
+
+@pytest.mark.parametrize("format_name", ["checkpoint", "onnx", "torch_export"])
+def test_every_format_answers_what_the_torchrl_actor_answers(exports, states, format_name):
+    aircraft, destination, last_action, expected = states
+    guide = Guide.load(exports[format_name])
+    assert guide.kind == format_name
+    assert guide.source.endswith(".pt")  # the checkpoint it came from
+    np.testing.assert_array_equal(guide.instruct_batch(aircraft, destination, last_action), expected)
+    single = [guide.instruct(aircraft[i], destination[i], int(last_action[i])) for i in range(SINGLE_QUERIES)]
+    np.testing.assert_array_equal(np.array(single), expected[:SINGLE_QUERIES])
+
+
+def test_onnx_file_runs_without_agrl(exports, states):
+    """What a deployment without agrl does: onnxruntime alone, raw-state inputs, the maneuver out."""
+    import onnxruntime
+
+    aircraft, destination, last_action, expected = states
+    session = onnxruntime.InferenceSession(str(exports["onnx"]), providers=["CPUExecutionProvider"])
+    assert [value.name for value in session.get_inputs()] == ["aircraft_state", "destination_state", "last_action"]
+    (maneuver,) = session.run(["maneuver"], {"aircraft_state": aircraft[:500], "destination_state": destination[:500],
+                                             "last_action": last_action[:500].astype(np.int64)})
+    np.testing.assert_array_equal(maneuver, expected[:500])
+
+
+def test_torch_export_file_runs_as_a_plain_module(exports, states):
+    aircraft, destination, last_action, expected = states
+    module = torch.export.load(str(exports["torch_export"])).module()
+    answer = module(torch.from_numpy(aircraft[:500]), torch.from_numpy(destination[:500]),
+                    torch.from_numpy(last_action[:500]))
+    np.testing.assert_array_equal(answer.numpy(), expected[:500])
+
+
+def test_foreign_and_corrupt_files_are_refused(tmp_path):
+    corrupt = tmp_path / "broken.onnx"
+    corrupt.write_bytes(b"not a model")
+    with pytest.raises(GuideError, match="broken.onnx: not a readable ONNX model"):
+        Guide.load(corrupt)
+    foreign = tmp_path / "foreign.onnx"
+    import onnx
+    from onnx import TensorProto, helper
+
+    graph = helper.make_graph([helper.make_node("Identity", ["x"], ["y"])], "identity",
+                              [helper.make_tensor_value_info("x", TensorProto.FLOAT, [1])],
+                              [helper.make_tensor_value_info("y", TensorProto.FLOAT, [1])])
+    onnx.save(helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)]), str(foreign))
+    with pytest.raises(GuideError, match="foreign.onnx: not an agrl guide export"):
+        Guide.load(foreign)
+    with pytest.raises(GuideError, match="missing.pt2: no such torch.export file"):
+        Guide.load(tmp_path / "missing.pt2")
+    broken = tmp_path / "broken.pt2"
+    broken.write_bytes(b"not an archive")
+    with pytest.raises(GuideError, match="broken.pt2: not a readable torch.export archive"):
+        Guide.load(broken)
+
+
+def test_cli_arguments_are_checked(tmp_path):
+    destination = str(tmp_path / "guide.onnx")
+    command = [sys.executable, "-m", "agrl.export", "baseline", destination, "--format", "torch_export"]
+    completed = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert completed.returncode == 2
+    assert "destination=" in completed.stderr and "format=torch_export writes a .pt2 file" in completed.stderr
+    with pytest.raises(SystemExit):
+        main(["baseline", str(tmp_path / "g.onnx"), "--format", "onnx", "--evaluation", "eval.json"])
+    with pytest.raises(SystemExit):
+        main(["baseline", str(tmp_path / "g.onnx"), "--format", "tflite"])
