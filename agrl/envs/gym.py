@@ -78,7 +78,7 @@ def guidance_parameters(
     radius: float | None = None,
     turn_direction: int | None = None,
     max_decisions: int | None = None,
-    reward: str = "both",
+    reward: str | None = None,
     compile: bool = False,
 ) -> GuidanceParameters:
     """The :class:`GuidanceParameters` that ``python -m agrl.train task=... reward=...`` would use.
@@ -89,11 +89,13 @@ def guidance_parameters(
     tasks, rewards = config_options("task"), config_options("reward")
     if task not in tasks:
         _fail("task", task, f"one of {', '.join(tasks)}")
-    if reward not in rewards:
-        _fail("reward", reward, f"one of {', '.join(rewards)}")
+    if reward is not None and reward not in rewards:
+        _fail("reward", reward, f"one of {', '.join(rewards)} (None: the training default, conf/config.yaml)")
     if not isinstance(compile, bool):
         _fail("compile", compile, "True or False")
-    overrides = [f"task={task}", f"reward={reward}", f"simulation.compile={str(compile).lower()}"]
+    overrides = [f"task={task}", f"simulation.compile={str(compile).lower()}"]
+    if reward is not None:
+        overrides.append(f"reward={reward}")
     given = {"speed": speed, "radius": radius, "turn_direction": turn_direction}
     for name, value in given.items():
         if value is not None and name not in TASK_PARAMETERS.get(task, ()):
@@ -197,7 +199,7 @@ class GuidanceGymEnv(gymnasium.Env):
         radius: float | None = None,
         turn_direction: int | None = None,
         max_decisions: int | None = None,
-        reward: str = "both",
+        reward: str | None = None,
         compile: bool = False,
         render_mode: str | None = None,
     ):
@@ -309,11 +311,13 @@ class GuidanceGymEnv(gymnasium.Env):
         if outcome == Outcome.RUNNING and self._step_count >= self.params.max_decisions:
             outcome = int(Outcome.BUDGET_EXHAUSTED)
         terminated = outcome != Outcome.RUNNING
-        # An instruction is a decision that changes the maneuver being flown.
-        self._instruction_count += int(action != self._last_action)
+        # An instruction is a decision that changes the maneuver being flown (and pays the switch cost).
+        switched = action != self._last_action
+        self._instruction_count += int(switched)
         self._aircraft, self._destination, self._outcome = result.aircraft_state, result.destination_state, outcome
         self._action_before_last, self._last_action = self._last_action, action
-        reward = step_reward_row(outcome, potential_before, self._potential(terminated), self.params.reward)
+        reward = step_reward_row(outcome, potential_before, self._potential(terminated), self.params.reward,
+                                 switched)
         self._episode_return += reward
         self._running = not terminated
         if self.render_mode is not None:

@@ -64,7 +64,7 @@ class GuidanceVectorEnv(VectorEnv):
         radius: float | None = None,
         turn_direction: int | None = None,
         max_decisions: int | None = None,
-        reward: str = "both",
+        reward: str | None = None,
         compile: bool = False,
         device: str = "cpu",
         render_mode: str | None = None,

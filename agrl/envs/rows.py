@@ -99,11 +99,14 @@ def potential_row(
     return value
 
 
-def step_reward_row(outcome: int, potential_before: float, potential_after: float, params: RewardParameters) -> float:
-    """:func:`agrl.core.reward.step_reward` (equations 5-7) for one row."""
+def step_reward_row(outcome: int, potential_before: float, potential_after: float, params: RewardParameters,
+                    switched: bool = False) -> float:
+    """:func:`agrl.core.reward.step_reward` (equations 5-7) plus :func:`agrl.core.reward.switch_cost_reward`
+    (``switched``: this decision changed the maneuver being flown) for one row."""
     termination = {
         Outcome.SUCCESS: params.success,
         Outcome.OUT_OF_AIRSPACE: params.out_of_airspace,
         Outcome.BUDGET_EXHAUSTED: params.budget_exhausted,
     }.get(Outcome(outcome), 0.0)
-    return termination + params.gamma * potential_after - potential_before
+    switch_cost = -params.switch_cost if switched else 0.0
+    return termination + params.gamma * potential_after - potential_before + switch_cost

@@ -92,7 +92,7 @@ def test_task_kwargs_reach_the_simulation():
 
 
 @pytest.mark.parametrize("task", ["fixed", "uniform", "curved", "irregular"])
-@pytest.mark.parametrize("reward", ["none", "continuous", "position", "both"])
+@pytest.mark.parametrize("reward", ["none", "continuous", "position", "both", "switch"])
 def test_parameters_equal_the_training_defaults(task, reward):
     """The gym env builds exactly what `python -m agrl.train task=... reward=...` builds (conf/)."""
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):

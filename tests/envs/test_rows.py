@@ -9,7 +9,7 @@ import torch
 
 from agrl.core.aircraft import AircraftLimits
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
-from agrl.core.reward import RewardParameters, potential, step_reward
+from agrl.core.reward import RewardParameters, potential, step_reward, switch_cost_reward
 from agrl.core.termination import Airspace, Outcome
 from agrl.envs.rows import observation_row, potential_row, step_reward_row
 
@@ -51,19 +51,24 @@ def test_observation_row_follows_a_different_airspace():
         torch.testing.assert_close(torch.tensor(row, dtype=torch.float64), expected[index], rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize(("continuous", "position"), [(True, True), (True, False), (False, True), (False, False)])
-def test_potential_and_reward_rows_equal_the_torch_reward(continuous, position):
-    params = RewardParameters(use_continuous_action=continuous, use_position=position)
+@pytest.mark.parametrize(("continuous", "position", "switch_cost"),
+                         [(True, True, 0.0), (True, False, 0.0), (False, True, 0.0), (False, False, 0.0),
+                          (True, True, 0.1)])
+def test_potential_and_reward_rows_equal_the_torch_reward(continuous, position, switch_cost):
+    params = RewardParameters(use_continuous_action=continuous, use_position=position, switch_cost=switch_cost)
     aircraft, destination, last_action, before_last = random_states(200, seed=2)
     before_last[::3] = last_action[::3]  # held actions too (equation 9's c5)
     terminal = torch.arange(200) % 5 == 0
     outcome = torch.arange(200) % len(Outcome)
     expected_potential = potential(aircraft, destination, last_action, before_last, terminal, params)
     # float64 inputs: the continuous-action term is float32 in agrl.core (c4, c5 are exact in neither)
-    expected_reward = step_reward(outcome, expected_potential.roll(1), expected_potential, params)
+    # The action of each step is last_action; it switched if it differs from the maneuver before it.
+    expected_reward = (step_reward(outcome, expected_potential.roll(1), expected_potential, params)
+                       + switch_cost_reward(last_action, before_last, params))
     for index in range(200):
         value = potential_row(aircraft[index].tolist(), destination[index].tolist(), int(last_action[index]),
                               int(before_last[index]), bool(terminal[index]), params)
         assert math.isclose(value, float(expected_potential[index]), rel_tol=0, abs_tol=1e-7)
-        reward = step_reward_row(int(outcome[index]), float(expected_potential.roll(1)[index]), value, params)
+        reward = step_reward_row(int(outcome[index]), float(expected_potential.roll(1)[index]), value, params,
+                                 switched=bool(last_action[index] != before_last[index]))
         assert math.isclose(reward, float(expected_reward[index]), rel_tol=0, abs_tol=1e-6)
