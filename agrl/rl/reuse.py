@@ -1,8 +1,10 @@
 """Policy reuse by destination position prediction (the paper's Algorithm 1) as a replay-buffer transform.
 
 When collected data is added to the replay buffer (``rb.extend`` calls
-:meth:`PolicyReuseTransform.inv`), each episode that starts in the batch is,
-with probability ``e``, re-played with the frozen baseline agent B:
+:meth:`PolicyReuseTransform.inv`), each episode with rows in the batch whose start
+is known (in this batch, or kept from an earlier one: each env's rows since its
+episode's start are kept until the episode ends) is, if it was selected with
+probability ``e`` when it started, re-played with the frozen baseline agent B:
 
 1. The destination's trajectory is known: recorded in the batch, and extended
    past the episode's end by its motion model (constant speed and turn rate).
@@ -20,10 +22,10 @@ with probability ``e``, re-played with the frozen baseline agent B:
    ``t_n``; if none does, the agent's own data is kept. ``e`` drops by ``k`` for
    every selected episode and stops at 0 (Algorithm 1 line 32).
 
-All candidates of all selected episodes run in one batch: a time loop, with
-finished rows dropped as they end, and no Python loop over episodes or
-candidates. Stored tuples carry the real destination fields, so PPO trains the
-new agent on its own task. The transform never writes into its input.
+The candidates run in a few waves (the earliest t_n first for ``earliest``), all
+episodes together in each: a time loop per wave, with finished rows dropped as
+they end, and no Python loop over episodes or candidates. Stored tuples carry the
+real destination fields, so PPO trains the new agent on its own task. The transform never writes into its input.
 
 Actions of relabelled rows come from B, not from the policy being trained, so the
 PPO quantities are recomputed for them by ``ppo_targets(trajectories, valid)``
