@@ -7,7 +7,9 @@ with the selection factor reset to ``--selection-factor`` before every call. Thi
 replay buffer's ``extend`` does in one training iteration (``time/reuse_seconds`` in a run).
 
 Every line has ``name``, ``value`` (median seconds over ``--repeats`` calls after one warm-up call)
-and ``unit``, plus the episodes selected and relabelled and the rows stored. The first line is the
+and ``unit``, plus the median process CPU seconds (``cpu_seconds``: comparable on a loaded machine with
+``--threads 1``), the rows the relabelling simulated (``simulated_row_decisions``, search and replay: its
+cost, independent of the load), the episodes selected and relabelled and the rows stored. The first line is the
 machine (see :mod:`agrl.bench`).
 
 Examples::
@@ -89,20 +91,33 @@ def main(argv: Sequence[str] | None = None) -> int:
             rows = trainer.advantage(batch).reshape(-1)
         transform = trainer.reuse
         budget = trainer.params.max_decisions
+        # Count the rows the relabelling simulates (search and replay): its cost, independent of the machine's load.
+        simulated = [0]
+        transition = trainer.env.transition
+
+        def counting_transition(state, *motion):
+            simulated[0] += state.numel()
+            return transition(state, *motion)
+
+        trainer.env.transition = counting_transition
         for candidates in args.candidates:
             transform.candidates = candidate_steps(budget, config.method.candidate_stride, candidates).to(rows.device)
-            timings = []
+            timings, cpu_timings = [], []
             for call in range(args.repeats + 1):  # the first call warms up (compiles the new batch shapes)
                 transform.selection_factor = args.selection_factor
-                start = time.perf_counter()
+                simulated[0] = 0
+                start, cpu_start = time.perf_counter(), time.process_time()
                 stored = transform.relabel(rows)
                 if call:
                     timings.append(time.perf_counter() - start)
+                    cpu_timings.append(time.process_time() - cpu_start)
             statistics_ = transform.last_statistics()
             emit({
                 "name": "reuse_relabel",
                 "value": round(statistics.median(timings), 3),
                 "unit": "s per batch",
+                "cpu_seconds": round(statistics.median(cpu_timings), 3),
+                "simulated_row_decisions": simulated[0],
                 "candidates": int(transform.candidates.numel()),
                 "selection_factor": args.selection_factor,
                 "batch_rows": rows.numel(),

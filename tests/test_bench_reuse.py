@@ -22,7 +22,9 @@ def test_quick_run_times_each_candidate_count(tmp_path):
     timed = records[1:]
     assert [record["candidates"] for record in timed] == [2, 4]
     for record in timed:
-        assert record["unit"] == "s per batch" and record["value"] > 0
+        assert record["unit"] == "s per batch" and record["value"] > 0 and record["cpu_seconds"] > 0
+        # Every relabelled episode is simulated at least once in the search and once in the replay.
+        assert record["simulated_row_decisions"] >= 2 * record["episodes_relabelled"]
         assert record["batch_rows"] == 64 * 16
         # e = 1: every episode starting in the batch is selected, and the untrained agent's are short.
         assert record["episodes_selected"] >= 64

@@ -1,8 +1,10 @@
 """Policy reuse by destination position prediction (the paper's Algorithm 1) as a replay-buffer transform.
 
 When collected data is added to the replay buffer (``rb.extend`` calls
-:meth:`PolicyReuseTransform.inv`), each episode that starts in the batch is,
-with probability ``e``, re-played with the frozen baseline agent B:
+:meth:`PolicyReuseTransform.inv`), each episode with rows in the batch whose start
+is known (in this batch, or kept from an earlier one: each env's rows since its
+episode's start are kept until the episode ends) is, if it was selected with
+probability ``e`` when it started, re-played with the frozen baseline agent B:
 
 1. The destination's trajectory is known: recorded in the batch, and extended
    past the episode's end by its motion model (constant speed and turn rate).
@@ -20,10 +22,10 @@ with probability ``e``, re-played with the frozen baseline agent B:
    ``t_n``; if none does, the agent's own data is kept. ``e`` drops by ``k`` for
    every selected episode and stops at 0 (Algorithm 1 line 32).
 
-All candidates of all selected episodes run in one batch: a time loop, with
-finished rows dropped as they end, and no Python loop over episodes or
-candidates. Stored tuples carry the real destination fields, so PPO trains the
-new agent on its own task. The transform never writes into its input.
+The candidates run in a few waves (the earliest t_n first for ``earliest``), all
+episodes together in each: a time loop per wave, with finished rows dropped as
+they end, and no Python loop over episodes or candidates. Stored tuples carry the
+real destination fields, so PPO trains the new agent on its own task. The transform never writes into its input.
 
 Actions of relabelled rows come from B, not from the policy being trained, so the
 PPO quantities are recomputed for them by ``ppo_targets(trajectories, valid)``
@@ -50,6 +52,9 @@ from agrl.envs.guidance import STATE_KEYS, GuidanceEnv
 #: Entries kept in the buffer for PPO when the transform is active.
 PPO_KEYS = ("observation", "action", "action_log_prob", "state_value", "advantage", "value_target", "relabelled")
 TRAJECTORY_KEY = ("collector", "traj_ids")
+#: Entries of the rows kept from one batch to the next (what the search and the prediction read).
+CARRY_KEYS = (*STATE_KEYS, *[("next", key) for key in ("aircraft_state", "destination_state", "destination_speed",
+                                                      "destination_turn_rate", "done")])
 
 
 def candidate_steps(max_decisions: int, stride: int, max_candidates: int) -> torch.Tensor:
@@ -63,6 +68,21 @@ def candidate_steps(max_decisions: int, stride: int, max_candidates: int) -> tor
         pick = torch.linspace(0, grid.numel() - 1, max_candidates).round().long().unique()
         grid = grid[pick]
     return grid
+
+
+def candidate_waves(candidates: int, keep: str) -> list[torch.Tensor]:
+    """The search's waves: candidate indices in the order they can be kept, in groups of 2, 2, 4, 8, ...
+
+    With ``keep="earliest"`` the first waves hold the smallest t_n, whose rollouts are short; an episode
+    whose earliest candidates succeed never runs its long, late ones. ``latest`` runs the grid backwards.
+    """
+    order = torch.arange(candidates) if keep == "earliest" else torch.arange(candidates - 1, -1, -1)
+    waves, start, size = [], 0, 2
+    while start < candidates:
+        waves.append(order[start:start + size])
+        start += size
+        size = size if start < 4 else 2 * size
+    return waves
 
 
 @torch.no_grad()
@@ -122,14 +142,31 @@ class PolicyReuseTransform(Transform):
         self.candidates = candidate_steps(env.params.max_decisions, candidate_stride, max_candidates).to(env.device)
         self.generator = torch.Generator(device=env.device).manual_seed(seed + 7_919)
         self._statistics: dict[str, float] = {}
+        # Rows of each env's unfinished episode (since its start), kept for the next batch: flat, env after env.
+        self._carry: TensorDictBase | None = None
+        self._carry_lengths: torch.Tensor | None = None  # (envs,) rows kept per env, < max_decisions
+        self._carry_selected: torch.Tensor | None = None  # (envs,) whether that episode was selected
 
     # ------------------------------------------------------------------ state for checkpoints
     def state_dict(self, *args, **kwargs) -> dict:
-        return {"selection_factor": self.selection_factor, "generator": self.generator.get_state()}
+        """Plain tensors and dicts (checkpoints are read with ``torch.load(weights_only=True)``)."""
+        state = {"selection_factor": self.selection_factor, "generator": self.generator.get_state()}
+        if self._carry is not None:
+            state["carry"] = {"rows": self._carry.to_dict(), "lengths": self._carry_lengths.clone(),
+                              "selected": self._carry_selected.clone()}
+        return state
 
     def load_state_dict(self, state: dict, *args, **kwargs) -> None:
         self.selection_factor = float(state["selection_factor"])
         self.generator.set_state(state["generator"])
+        carry = state.get("carry")
+        if carry is None:
+            self._carry = self._carry_lengths = self._carry_selected = None
+            return
+        device = self.env.device
+        lengths = carry["lengths"].to(device)
+        self._carry = TensorDict(carry["rows"], batch_size=[int(lengths.sum())], device=device)
+        self._carry_lengths, self._carry_selected = lengths, carry["selected"].to(device)
 
     def last_statistics(self) -> dict[str, float]:
         """Dashboard scalars of the last call (``train/reuse_fraction``, ``train/e``, ...)."""
@@ -154,28 +191,41 @@ class PolicyReuseTransform(Transform):
         device = rows.device
         if rows.batch_dims != 1:
             raise ValueError(f"PolicyReuseTransform expects flat rows (one batch dimension), got {rows.batch_size}")
-        traj_ids = rows.get(TRAJECTORY_KEY)
-        starts = (rows["step_count"] == 0).nonzero().squeeze(-1)
-        # Episodes starting in this batch, each selected with probability e (line 10-11).
-        selected = torch.rand(starts.numel(), generator=self.generator, device=device) < self.selection_factor
+        # Each env's rows since its episode's start: the rows kept from earlier batches, then this batch's.
+        known, per_env, in_batch, episode_ids, carried = self._with_carried_rows(rows)
+        traj_ids = episode_ids[in_batch]  # the episode of every row of this batch
+        starts = (known["step_count"] == 0).nonzero().squeeze(-1)
+        new = in_batch[starts]
+        # Episodes starting in this batch, each selected with probability e (line 10-11); an episode carried
+        # over from an earlier batch keeps the choice made when it started.
+        selected = torch.zeros(starts.numel(), dtype=torch.bool, device=device)
+        draws = torch.rand(int(new.sum()), generator=self.generator, device=device) < self.selection_factor
+        selected[new] = draws
+        selected[~new] = carried[starts[~new]]
+        self._keep_unfinished(known, per_env, starts, selected)
+        # The share of this batch's rows whose episode's start is known: the rows that can be relabelled.
+        has_start = torch.zeros(int(episode_ids[-1]) + 1, dtype=torch.bool, device=device)
+        has_start[episode_ids[starts]] = True
+        relabellable = float(has_start[traj_ids].float().mean())
         starts = starts[selected]
         episodes = int(starts.numel())
-        self.selection_factor = max(0.0, self.selection_factor - self.selection_decay * episodes)
+        self.selection_factor = max(0.0, self.selection_factor - self.selection_decay * int(draws.sum()))
 
         relabelled_rows = None
         succeeded = torch.zeros(episodes, dtype=torch.bool, device=device)
         dropped = torch.zeros_like(succeeded)
         if episodes:
-            trajectory, motion = self._destination_prediction(rows, starts, traj_ids)
-            winner_step, winner_index = self._search(rows[starts], trajectory, motion)
-            found, dropped = self._fitting(winner_index >= 0, winner_step, traj_ids, traj_ids[starts], rows.numel())
+            trajectory, motion = self._destination_prediction(known, starts, episode_ids)
+            winner_step, winner_index = self._search(known[starts], trajectory, motion)
+            found, dropped = self._fitting(winner_index >= 0, winner_step, traj_ids, episode_ids[starts],
+                                           rows.numel())
             succeeded |= dropped  # found, but their rows would fall past max_rows: neither own nor re-played
             if found.numel():
-                relabelled_rows, replayed = self._replay(rows[starts[found]], trajectory[found], motion[found],
+                relabelled_rows, replayed = self._replay(known[starts[found]], trajectory[found], motion[found],
                                                          winner_step[found], winner_index[found])
                 # The replay decides (see _replay): an episode whose replay did not succeed keeps its own rows.
                 succeeded[found] = replayed
-        replaced_ids = traj_ids[starts[succeeded]]
+        replaced_ids = episode_ids[starts[succeeded]]
         keep_own = ~torch.isin(traj_ids, replaced_ids)
         own = rows[keep_own].select(*[key for key in PPO_KEYS if key != "relabelled"])
         own["relabelled"] = torch.zeros(own.batch_size, dtype=torch.bool, device=device)
@@ -188,10 +238,77 @@ class PolicyReuseTransform(Transform):
             "train/e": self.selection_factor,
             "train/reuse_fraction": relabelled_count / max(output.numel(), 1),
             "train/reuse_episodes_selected": episodes,
+            "train/reuse_episodes_carried": int((~new[selected]).sum()),
+            "train/reuse_relabellable_fraction": relabellable,
             "train/reuse_episodes_relabelled": int((succeeded & ~dropped).sum()),
             "time/reuse_relabel_seconds": time.perf_counter() - start_time,
         }
         return output
+
+    def _with_carried_rows(
+        self, rows: TensorDictBase
+    ) -> tuple[TensorDictBase, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """This batch's rows with, in front of each env's, the rows kept from its episode's earlier batches.
+
+        Returns the rows (``CARRY_KEYS``, env after env), their count per env, a mask of the ones from this batch,
+        an episode id per row (ascending; an episode is contiguous: it begins at ``step_count == 0`` or at an
+        env's first row) and, per row, whether its episode was selected in the batch where it started (on kept
+        rows; False on this batch's).
+        Kept rows are used only when this batch continues them (the next step count and aircraft state).
+        """
+        device = rows.device
+        envs = self.env.batch_size.numel()
+        if rows.numel() % envs:
+            raise ValueError(f"PolicyReuseTransform expects {envs} envs x steps rows, got {rows.numel()} rows")
+        steps = rows.numel() // envs
+        batch = rows.select(*CARRY_KEYS)
+        first = torch.arange(envs, device=device) * steps
+        lengths = torch.zeros(envs, dtype=torch.long, device=device)
+        if self._carry is not None and self._carry_lengths.numel() == envs:
+            end = torch.cumsum(self._carry_lengths, 0) - 1
+            last = self._carry[end.clamp(min=0)] if self._carry.numel() else None
+            if last is not None:
+                continues = (
+                    (self._carry_lengths > 0)
+                    & (batch["step_count"][first] == last["step_count"] + 1)
+                    & (batch["aircraft_state"][first] == last["next", "aircraft_state"]).all(-1)
+                )
+                lengths = torch.where(continues, self._carry_lengths, 0)
+        carry_rows = self._carry.numel() if self._carry is not None and lengths.any() else 0
+        source = torch.cat([self._carry, batch]) if carry_rows else batch
+        offset = torch.cumsum(self._carry_lengths, 0) - self._carry_lengths if carry_rows else lengths
+        per_env = lengths + steps
+        env = torch.repeat_interleave(torch.arange(envs, device=device), per_env)
+        position = torch.arange(int(per_env.sum()), device=device) - (torch.cumsum(per_env, 0) - per_env)[env]
+        kept = position < lengths[env]
+        index = torch.where(kept, offset[env] + position, carry_rows + env * steps + position - lengths[env])
+        known = source[index]
+        boundary = (known["step_count"] == 0) | (position == 0)
+        episode_ids = torch.cumsum(boundary.long(), 0) - 1
+        carried = kept & self._carry_selected[env] if carry_rows else kept
+        return known, per_env, ~kept, episode_ids, carried
+
+    def _keep_unfinished(
+        self, known: TensorDictBase, per_env: torch.Tensor, starts: torch.Tensor, selected: torch.Tensor
+    ) -> None:
+        """Keep the rows of each env's last episode for the next batch, if it has not ended and its start is known.
+
+        At most ``max_decisions - 1`` rows per env: an episode ends at its decision budget.
+        """
+        device = known.device
+        last_rows = torch.cumsum(per_env, 0) - 1
+        first_rows = last_rows - per_env + 1
+        # Each env's last start (starts ascend, envs are contiguous): the start just before its last row.
+        position = torch.searchsorted(starts, last_rows, right=True) - 1
+        padded = torch.cat([starts, starts.new_full((1,), -1)])  # index -1: no start in the rows at all
+        last_start = torch.where(position >= 0, padded[position], -1)
+        unfinished = ~known["next", "done"].reshape(-1)[last_rows] & (last_start >= first_rows)
+        lengths = torch.where(unfinished, last_rows - last_start + 1, 0)
+        env = torch.repeat_interleave(torch.arange(per_env.numel(), device=device), lengths)
+        offset = torch.arange(int(lengths.sum()), device=device) - (torch.cumsum(lengths, 0) - lengths)[env]
+        self._carry = known[last_start[env] + offset].clone()
+        self._carry_lengths = lengths
+        self._carry_selected = unfinished & torch.cat([selected, selected.new_zeros(1)])[position]
 
     def _destination_prediction(
         self, rows: TensorDictBase, starts: torch.Tensor, traj_ids: torch.Tensor
@@ -247,45 +364,74 @@ class PolicyReuseTransform(Transform):
     def _search(
         self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Roll out every (episode, t_n) candidate at once; return the kept candidate's arrival step and index.
+        """Roll out the (episode, t_n) candidates; return the kept candidate's arrival step and index.
 
-        ``winner_index`` is -1 for episodes where no candidate succeeded.
+        ``winner_index`` is -1 for episodes where no candidate succeeded. The candidates run in waves
+        (:func:`candidate_waves`), in the order they would be kept (earliest: ascending t_n): an episode
+        with a success in one wave has its kept candidate there, so its later waves are not run. Within a
+        wave all candidates of all pending episodes run in one batch.
         """
         device = trajectory.device
         episodes, candidates = trajectory.shape[0], self.candidates.numel()
         spacing = int(self.candidates[1] - self.candidates[0]) if candidates > 1 else 1
-        episode = torch.arange(episodes, device=device).repeat_interleave(candidates)
-        candidate = torch.arange(candidates, device=device).repeat(episodes)
+        # The kept candidate per episode: index into the grid (earliest = smallest, latest = largest).
+        sentinel = candidates if self.keep == "earliest" else -1
+        best = torch.full((episodes,), sentinel, dtype=torch.long, device=device)
+        arrival = torch.zeros(episodes, candidates, dtype=torch.long, device=device)
+        pending = torch.arange(episodes, device=device)
+        for wave in candidate_waves(candidates, self.keep):
+            if pending.numel() == 0:
+                break
+            wave = wave.to(device)
+            episode = pending.repeat_interleave(wave.numel())
+            candidate = wave.repeat(pending.numel())
+            self._search_wave(start_rows, trajectory, motion, episode, candidate, spacing, best, arrival)
+            pending = pending[best[pending] == sentinel]
+        found = (best >= 0) & (best < candidates)
+        winner_index = torch.where(found, best, -1)
+        winner_arrival = arrival.gather(1, winner_index.clamp(min=0)[:, None]).squeeze(1)
+        return torch.where(found, winner_arrival, 0), winner_index
+
+    def _search_wave(
+        self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor, episode: torch.Tensor,
+        candidate: torch.Tensor, spacing: int, best: torch.Tensor, arrival: torch.Tensor,
+    ) -> None:
+        """One time loop over the rows ``(episode, candidate)``; updates ``best`` and ``arrival`` in place."""
         target_step = self.candidates[candidate]
         limit = (target_step + spacing).clamp(max=self.env.params.max_decisions)
         predicted = trajectory[episode, target_step]
         state = _initial_state(start_rows, episode)
-        # The kept candidate per episode: index into the grid (earliest = smallest, latest = largest).
-        sentinel = candidates if self.keep == "earliest" else -1
-        best = torch.full((episodes,), sentinel, dtype=torch.long, device=device)
-        arrival = torch.zeros(episodes * candidates, dtype=torch.long, device=device)
-        alive = torch.arange(episodes * candidates, device=device)
-        for step in range(self.env.params.max_decisions):
+        reduce = "amin" if self.keep == "earliest" else "amax"
+        alive = torch.arange(episode.numel(), device=episode.device)
+        for step in range(int(limit.max())):
             if alive.numel() == 0:
                 break
             state["action"] = self._baseline_actions(state, predicted[alive])
             index = episode[alive]
-            state = self.env.transition(state, motion[index, step, 0], motion[index, step, 1])
+            state = self._transition(state, motion[index, step, 0], motion[index, step, 1])
             success = state["outcome"] == Outcome.SUCCESS
             if bool(success.any()):
-                arrival[alive[success]] = step + 1
-                reduce = "amin" if self.keep == "earliest" else "amax"
+                arrival[index[success], candidate[alive][success]] = step + 1
                 best.scatter_reduce_(0, index[success], candidate[alive][success], reduce=reduce)
             running = (state["outcome"] == Outcome.RUNNING) & (step + 1 < limit[alive])
+            # A candidate on the far side of an episode's kept success can no longer be the one kept.
             if self.keep == "earliest":
-                # A candidate later than an episode's earliest success can no longer be the one kept.
                 running &= candidate[alive] < best[index]
+            else:
+                running &= candidate[alive] > best[index]
             alive = alive[running]
             state = state[running].exclude("reward", "done", "terminated", "outcome")
-        found = (best >= 0) & (best < candidates)
-        winner_index = torch.where(found, best, -1)
-        winner_row = torch.arange(episodes, device=device) * candidates + winner_index.clamp(min=0)
-        return torch.where(found, arrival[winner_row], 0), winner_index
+
+    def _transition(
+        self, state: TensorDictBase, destination_speed: torch.Tensor, destination_turn_rate: torch.Tensor
+    ) -> TensorDictBase:
+        """``env.transition``, with a single row doubled: a batch of one would make the fused simulator
+        recompile (torch.compile specialises sizes 0 and 1), a 10-20 s stall in the middle of training."""
+        if state.numel() != 1:
+            return self.env.transition(state, destination_speed, destination_turn_rate)
+        doubled = self.env.transition(torch.cat([state, state]), destination_speed.repeat(2),
+                                      destination_turn_rate.repeat(2))
+        return doubled[:1]
 
     def _fitting(
         self, found: torch.Tensor, arrival: torch.Tensor, traj_ids: torch.Tensor, episode_ids: torch.Tensor,
@@ -336,7 +482,7 @@ class PolicyReuseTransform(Transform):
             query = self._baseline_query(state, predicted[alive])
             state["action"] = query["action"]
             state["baseline_log_prob"] = query["action_log_prob"]
-            next_state = self.env.transition(state, motion[alive, step, 0], motion[alive, step, 1])
+            next_state = self._transition(state, motion[alive, step, 0], motion[alive, step, 1])
             record = state.set("next", next_state)
             if trajectories is None:
                 trajectories = record.unsqueeze(1).expand(episodes, length).clone()

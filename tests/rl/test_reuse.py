@@ -493,9 +493,10 @@ class SkittishLogits(PursuitLogits):
         return torch.where(near[..., None], pull_up, logits)
 
 
-def brute_force_search(grid: torch.Tensor, starts: torch.Tensor) -> torch.Tensor:
+def brute_force_search(grid: torch.Tensor, starts: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """Each (episode, candidate t_n) on its own row of a fresh env: B steered to the destination's position
-    at t_n, for at most ``t_n + spacing`` decisions. Returns arrival steps ``(E, C)`` (0 = no success)."""
+    at t_n, for at most ``t_n + spacing`` decisions. Returns arrival steps ``(E, C)`` (0 = no success) and
+    B's actions ``(E, C, BUDGET)``."""
     episodes, candidates = starts.shape[0], grid.numel()
     spacing = int(grid[1] - grid[0]) if candidates > 1 else 1
     env = GuidanceEnv(params(), num_envs=episodes * candidates, seed=11)
@@ -505,6 +506,7 @@ def brute_force_search(grid: torch.Tensor, starts: torch.Tensor) -> torch.Tensor
     limit = (grid + spacing).clamp(max=BUDGET).repeat(episodes)
     arrival = torch.zeros(episodes * candidates, dtype=torch.long)
     running = torch.ones(episodes * candidates, dtype=torch.bool)
+    actions = torch.zeros(episodes * candidates, BUDGET, dtype=torch.long)
     simulation = env.params.simulation
     for step in range(BUDGET):
         if not bool(running.any()):
@@ -512,12 +514,13 @@ def brute_force_search(grid: torch.Tensor, starts: torch.Tensor) -> torch.Tensor
         observed = policy_observation(td["aircraft_state"], target, td["last_action"], simulation.airspace,
                                       simulation.limits)
         td["action"] = SkittishLogits()(observed).argmax(-1)
+        actions[:, step] = td["action"]
         td = env.step(td)
         success = running & (td["next", "outcome"] == Outcome.SUCCESS)
         arrival[success] = step + 1
         running &= (td["next", "outcome"] == Outcome.RUNNING) & (step + 1 < limit)
         td = env.step_mdp(td)
-    return arrival.reshape(episodes, candidates)
+    return arrival.reshape(episodes, candidates), actions.reshape(episodes, candidates, BUDGET)
 
 
 @pytest.mark.parametrize(("keep", "stride", "cap"), [("earliest", 1, BUDGET), ("latest", 1, BUDGET),
@@ -534,7 +537,7 @@ def test_search_keeps_the_earliest_or_latest_successful_candidate(uniform, keep,
     motion = torch.tensor([50.0, 0.0]).expand(aircraft.shape[0], BUDGET, 2)
     arrival, winner = transform._search(start_rows, trajectory, motion)
 
-    brute = brute_force_search(transform.candidates, aircraft)
+    brute, _ = brute_force_search(transform.candidates, aircraft)
     for episode in range(aircraft.shape[0]):
         succeeded = (brute[episode] > 0).nonzero().squeeze(-1)
         assert 2 <= succeeded.numel() < transform.candidates.numel(), "some candidates succeed, not all"
@@ -595,6 +598,132 @@ def test_prediction_past_the_episode_follows_the_motion_model(uniform, fixed, ki
     else:
         torch.testing.assert_close(motion, torch.zeros_like(motion))
     torch.testing.assert_close(prediction, expected, atol=1e-2, rtol=0)
+
+
+# ---------------------------------------------------------------------------- episodes across batches
+SPANNING_STEPS = 11  # decisions per env per batch: the 20-decision episodes span two or three batches
+
+
+class Spanning:
+    """Consecutive collector batches of an agent Z that circles left (it never arrives, so its episodes run
+    to the budget or leave the airspace), 11 decisions per env each, with GAE as the trainer gives them."""
+
+    def __init__(self, batches: int = 4):
+        torch.manual_seed(1)
+        self.env = GuidanceEnv(params(), num_envs=NUM_ENVS, seed=1)
+        critic = make_critic([32, 32], "tanh")
+        gae = GAE(gamma=0.99, lmbda=0.95, value_network=critic, average_gae=False)
+        self.replay_gae = GAE(gamma=0.99, lmbda=0.95, value_network=None, average_gae=False)
+        self.critic = critic
+        collector = Collector(self.env, as_actor(ConstantLogits(LEFT)), frames_per_batch=NUM_ENVS * SPANNING_STEPS,
+                              total_frames=-1, auto_register_policy_transforms=False)
+        self.batches = []
+        for data in collector:
+            with torch.no_grad():
+                self.batches.append(gae(data).reshape(-1))
+            if len(self.batches) == batches:
+                break
+        collector.shutdown()
+        self.received: list[tuple[TensorDict, torch.Tensor]] = []
+
+    @torch.no_grad()
+    def ppo_targets(self, trajectories, valid):
+        self.received.append((trajectories.clone(), valid.clone()))
+        return relabelled_ppo_targets(trajectories, valid, critic=self.critic, advantage=self.replay_gae)
+
+    def transform(self, **kwargs) -> PolicyReuseTransform:
+        kwargs.setdefault("max_candidates", BUDGET)
+        return PolicyReuseTransform(as_actor(SkittishLogits()), self.env, ppo_targets=self.ppo_targets, **kwargs)
+
+    def batch_of(self) -> dict[int, int]:
+        """Episode (collector trajectory id) -> the batch it starts in."""
+        first = {}
+        for number, batch in enumerate(self.batches):
+            for trajectory in batch.get(TRAJECTORY_KEY)[batch["step_count"] == 0].tolist():
+                first.setdefault(trajectory, number)
+        return first
+
+    def start_of(self, trajectory: int) -> TensorDict:
+        for batch in self.batches:
+            row = (batch.get(TRAJECTORY_KEY) == trajectory) & (batch["step_count"] == 0)
+            if bool(row.any()):
+                return batch[row.nonzero()[0, 0]]
+        raise AssertionError(f"episode {trajectory} has no start row")
+
+
+@pytest.fixture(scope="module")
+def spanning(torch_one_thread) -> Spanning:
+    return Spanning()
+
+
+def test_episodes_spanning_two_and_three_batches_are_relabelled_like_a_brute_force_search(spanning):
+    transform = spanning.transform()
+    first_batch = spanning.batch_of()
+    spans = {}
+    for batch in spanning.batches:
+        for trajectory in set(batch.get(TRAJECTORY_KEY).tolist()):
+            spans[trajectory] = spans.get(trajectory, 0) + 1
+    assert {2, 3} <= set(spans.values()), "the batches hold episodes spanning two and three batches"
+    checked_spans = set()
+    for number, batch in enumerate(spanning.batches):
+        spanning.received.clear()
+        out = transform.relabel(batch)
+        traj_ids = batch.get(TRAJECTORY_KEY)
+        # Every episode with rows in this batch has a known start (the first batch starts every env afresh).
+        episodes = sorted(set(traj_ids.tolist()), key=lambda t: int((traj_ids == t).nonzero()[0, 0]))
+        starts = torch.stack([spanning.start_of(t)["aircraft_state"] for t in episodes])
+        arrival, actions = brute_force_search(transform.candidates, starts)
+        success = arrival > 0
+        assert bool(success.any(-1).any()) and not bool(success.all()), "some candidates succeed, not all"
+        # Brute force: the earliest successful t_n per episode, its arrival step and B's actions.
+        expected_ids = [t for t, ok in zip(episodes, success.any(-1).tolist(), strict=True) if ok]
+        winner = torch.where(success, torch.arange(success.shape[1]), success.shape[1]).min(-1).values
+        assert transform.last_statistics()["train/reuse_episodes_relabelled"] == len(expected_ids)
+        assert len(spanning.received) == 1
+        trajectories, valid = spanning.received[0]
+        assert trajectories.shape[0] == len(expected_ids)
+        for row, trajectory in enumerate(expected_ids):
+            episode = episodes.index(trajectory)
+            length = int(arrival[episode, winner[episode]])
+            got = trajectories[row]
+            assert int(valid[row].sum()) == length, (number, trajectory)
+            start = spanning.start_of(trajectory)
+            assert torch.equal(got["aircraft_state"][0], start["aircraft_state"]), "re-played from the real S_0"
+            assert torch.equal(got["destination_state"][0], start["destination_state"])
+            assert got["action"][:length].tolist() == actions[episode, winner[episode], :length].tolist()
+            assert int(got["next", "outcome"][length - 1]) == Outcome.SUCCESS
+            checked_spans.add(number - first_batch[trajectory])
+        # Stored: this batch's rows of the episodes left alone, then the re-played episodes.
+        own_expected = int((~torch.isin(traj_ids, torch.tensor(expected_ids))).sum())
+        assert int((~out["relabelled"]).sum()) == own_expected
+        assert int(out["relabelled"].sum()) == int(valid.sum())
+        # The rows kept for the next batch: each env's unfinished episode since its start, under the budget.
+        assert transform._carry_lengths.shape == (NUM_ENVS,)
+        assert int(transform._carry_lengths.max()) < BUDGET
+        assert transform._carry.numel() == int(transform._carry_lengths.sum())
+    assert {0, 1, 2} <= checked_spans, "relabelled: episodes starting in this batch, one and two batches before"
+
+
+def test_kept_rows_are_in_the_state_dict_and_resume_is_exact(spanning, tmp_path):
+    first, second, third = spanning.batches[:3]
+    running = spanning.transform(initial_selection_factor=0.7, seed=4)
+    running.relabel(first)
+    running.relabel(second)
+    path = tmp_path / "reuse.pt"
+    torch.save(running.state_dict(), path)
+    resumed = spanning.transform(seed=99)
+    resumed.load_state_dict(torch.load(path, weights_only=True))
+    expected, got = running.relabel(third), resumed.relabel(third)
+    assert (expected == got).all()
+    assert {k: v for k, v in running.last_statistics().items() if not k.startswith("time/")} == {
+        k: v for k, v in resumed.last_statistics().items() if not k.startswith("time/")}
+    assert running.last_statistics()["train/reuse_episodes_carried"] > 0
+    # Without the kept rows the episodes that started earlier are left alone: the state is what differs.
+    fresh = spanning.transform()
+    fresh.load_state_dict({k: v for k, v in torch.load(path, weights_only=True).items() if k != "carry"})
+    fewer = fresh.relabel(third)  # the same draws for the episodes starting in this batch
+    assert int(fewer["relabelled"].sum()) < int(expected["relabelled"].sum())
+    assert fresh.last_statistics()["train/reuse_episodes_carried"] == 0
 
 
 # ---------------------------------------------------------------------------- as a replay-buffer transform
@@ -683,3 +812,34 @@ def test_pretrained_with_a_different_actor_is_a_one_line_error(run_cli, tiny_arg
     assert len(lines) == 1, result.stderr
     assert lines[0].startswith("agrl.train: error:") and str(baseline) in lines[0] and "actor" in lines[0]
     assert "Traceback" not in result.stderr
+
+
+def test_reuse_resume_matches_an_uninterrupted_run_bitwise(tmp_path, compose_train, tiny_args, steady_baseline):
+    """4 reuse iterations in a row == 2, then a resumed Trainer for 2 more (the kept rows are in the checkpoint)."""
+    from agrl.rl.checkpoint import load_checkpoint
+    from agrl.rl.trainer import Trainer
+
+    overrides = ["task=uniform", "speed=50", "method=reuse", f"method.baseline={steady_baseline}",
+                 "method.max_candidates=4", *SCENARIO_START]
+    straight, half = tmp_path / "straight", tmp_path / "half"
+    Trainer(compose_train(*tiny_args({"ppo.total_frames": 4 * 512}), *overrides), straight).train()
+    Trainer(compose_train(*tiny_args({"ppo.total_frames": 2 * 512}), *overrides), half).train()
+    first = load_checkpoint(half / "checkpoints" / "latest.pt")
+    assert first["reuse"]["carry"]["lengths"].sum() > 0, "episodes were carried over at the cut"
+    config = compose_train(*tiny_args({"ppo.total_frames": 4 * 512}), *overrides)
+    Trainer(config, half, resume_payload=first).train()
+    expected = load_checkpoint(straight / "checkpoints" / "latest.pt")
+    resumed = load_checkpoint(half / "checkpoints" / "latest.pt")
+    for key in ("actor", "critic", "reuse"):
+        assert_equal_nested(resumed[key], expected[key], key)
+
+
+def assert_equal_nested(a, b, where: str) -> None:
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and set(a) == set(b), where
+        for key in a:
+            assert_equal_nested(a[key], b[key], f"{where}[{key!r}]")
+    elif isinstance(a, torch.Tensor):
+        assert torch.equal(a, b), f"{where} differs"
+    else:
+        assert a == b, f"{where}: {a!r} != {b!r}"
