@@ -27,14 +27,12 @@ import sys
 import tempfile
 import time
 from collections.abc import Sequence
-from pathlib import Path
 
 import torch
 
 from agrl.bench import _positive, emit, machine_record
 
 #: The training configs (``conf/`` beside the package, as ``python -m agrl.train`` reads them).
-CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
@@ -69,15 +67,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     if args.threads is not None:
         torch.set_num_threads(args.threads)
-    from hydra import compose, initialize_config_dir
-
-    from agrl.config import load_config
+    from agrl.config import compose_config, load_config
     from agrl.rl.checkpoint import load_checkpoint, load_module_state
     from agrl.rl.reuse import candidate_steps
     from agrl.rl.trainer import Trainer
 
-    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        config = load_config(compose(config_name="config", overrides=args.overrides))
+    config = load_config(compose_config(*args.overrides))
     with tempfile.TemporaryDirectory() as run_dir:
         trainer = Trainer(config, run_dir)
         emit(machine_record(trainer.device))
