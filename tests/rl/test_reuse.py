@@ -15,6 +15,7 @@ keeps a copy of the full re-played trajectories it receives (the buffer only kee
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -49,10 +50,11 @@ OWN_KEYS = [key for key in PPO_KEYS if key != "relabelled"]
 
 
 # ---------------------------------------------------------------------------- stand-in agents and data
-def params(kind: MotionKind = MotionKind.UNIFORM, start=START) -> GuidanceParameters:
+def params(kind: MotionKind = MotionKind.UNIFORM, start=START,
+           destination_start=(0.0, 0.0, 0.0, 0.0)) -> GuidanceParameters:
     (x_low, x_high), y, z = start
     return GuidanceParameters(
-        destination=DestinationMotion(kind=kind, speed=50.0),
+        destination=DestinationMotion(kind=kind, speed=50.0, start=destination_start),
         initial_state=InitialStateDistribution(
             x_range=(x_low, x_high), y_range=(y, y), z_range=(z, z), speed_range=(200.0, 200.0)
         ),
@@ -99,9 +101,9 @@ def baseline_argmax(observation: torch.Tensor) -> torch.Tensor:
 class Collected:
     """One collector batch of agent Z on a hand-built task, with GAE, as the trainer prepares it."""
 
-    def __init__(self, kind: MotionKind, start=START, seed: int = 0):
+    def __init__(self, kind: MotionKind, start=START, seed: int = 0, destination_start=(0.0, 0.0, 0.0, 0.0)):
         torch.manual_seed(seed)
-        self.env = GuidanceEnv(params(kind, start), num_envs=NUM_ENVS, seed=seed)
+        self.env = GuidanceEnv(params(kind, start, destination_start), num_envs=NUM_ENVS, seed=seed)
         self.actor = make_actor([32, 32], "tanh")
         self.critic = make_critic([32, 32], "tanh")
         self.gae = GAE(gamma=0.99, lmbda=0.95, value_network=self.critic, average_gae=False)
@@ -843,3 +845,64 @@ def assert_equal_nested(a, b, where: str) -> None:
         assert torch.equal(a, b), f"{where} differs"
     else:
         assert a == b, f"{where}: {a!r} != {b!r}"
+
+
+def test_curved_prediction_follows_the_arc_heading_included(torch_one_thread):
+    """A curved destination (50 m/s on a 1 km radius, counter-clockwise from (0, 0) heading +x): recorded and
+    extended predictions are the circle x = R sin(wt), y = R (1 - cos wt), heading wt (the heading field is
+    predicted too, and it is what the baseline sees)."""
+    collected = Collected(MotionKind.CURVED)
+    flat = collected.flat()
+    transform = collected.transform()
+    starts = starts_of(flat)
+    prediction, motion = transform._destination_prediction(flat, starts, flat.get(TRAJECTORY_KEY))
+    radius, speed = 1_000.0, 50.0
+    rate = speed / radius
+    torch.testing.assert_close(motion, torch.tensor([speed, rate]).expand_as(motion))
+    # Every episode, also one begun mid-batch, starts its destination at (0, 0) heading +x.
+    assert bool((flat["step_count"][starts] == 0).all())
+    angle = rate * 3.0 * torch.arange(BUDGET + 1, dtype=torch.float64).expand(starts.numel(), -1)
+    expected = torch.stack((radius * torch.sin(angle), radius * (1 - torch.cos(angle)),
+                            torch.zeros_like(angle)), -1)
+    torch.testing.assert_close(prediction[..., :3].double(), expected, atol=0.05, rtol=0)
+    heading = prediction[..., 3].double()
+    torch.testing.assert_close(torch.cos(heading), torch.cos(angle), atol=1e-4, rtol=0)
+    torch.testing.assert_close(torch.sin(heading), torch.sin(angle), atol=1e-4, rtol=0)
+
+
+def test_prediction_reflects_at_the_airspace_wall(torch_one_thread):
+    """A uniform destination starting 500 m from the +x wall: it reaches the wall after 10 s, 3 1/3 decisions,
+    then flies back along -x with heading pi (the destination's motion model, beyond each episode too)."""
+    collected = Collected(MotionKind.UNIFORM, destination_start=(9_500.0, 0.0, 0.0, 0.0))
+    flat = collected.flat()
+    transform = collected.transform()
+    starts = starts_of(flat)
+    prediction, _ = transform._destination_prediction(flat, starts, flat.get(TRAJECTORY_KEY))
+    travelled = STEP * torch.arange(BUDGET + 1, dtype=torch.float64)
+    x = torch.where(travelled <= 500.0, 9_500.0 + travelled, 10_000.0 - (travelled - 500.0))
+    heading = torch.where(travelled <= 500.0, torch.zeros_like(travelled), torch.full_like(travelled, torch.pi))
+    for episode in range(starts.numel()):
+        torch.testing.assert_close(prediction[episode, :, 0].double(), x, atol=0.05, rtol=0)
+        torch.testing.assert_close(prediction[episode, :, 1].double(), torch.zeros_like(x), atol=0.05, rtol=0)
+        torch.testing.assert_close(torch.cos(prediction[episode, :, 3].double()), torch.cos(heading),
+                                   atol=1e-4, rtol=0)
+
+
+def test_baseline_log_prob_is_the_baselines_on_the_predicted_destination(relabelled):
+    """``method.behaviour_log_prob=baseline`` uses B's log-probability of its own action on the observation
+    with the predicted destination (equation 20), here recomputed from B's logits directly."""
+    trajectories, lengths, starts = relabelled.trajectories, relabelled.lengths, relabelled.starts
+    flat, transform = relabelled.flat, relabelled.transform
+    prediction, motion = transform._destination_prediction(flat, starts, flat.get(TRAJECTORY_KEY))
+    _, winner = transform._search(flat[starts], prediction, motion)
+    target = prediction[torch.arange(starts.numel()), transform.candidates[winner]]
+    simulation = relabelled.collected.env.params.simulation
+    for episode in range(starts.numel()):
+        rows = trajectories[episode, : int(lengths[episode])]
+        observed = policy_observation(rows["aircraft_state"], target[episode].expand(rows.shape[0], 4),
+                                      rows["last_action"], simulation.airspace, simulation.limits)
+        log_probs = torch.log_softmax(PursuitLogits()(observed), -1)
+        expected = log_probs.gather(-1, rows["action"][:, None]).squeeze(-1)
+        torch.testing.assert_close(rows["baseline_log_prob"], expected)
+        # A confident baseline: its argmax log-probability, 10 - log(e^10 + 6), not a uniform -log 7.
+        torch.testing.assert_close(expected, torch.full_like(expected, 10.0 - math.log(math.exp(10.0) + 6.0)))
