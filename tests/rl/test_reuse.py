@@ -29,6 +29,7 @@ from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.modules import ProbabilisticActor
 from torchrl.objectives.value import GAE
 
+from agrl.core.destinations import DestinationState, move_destination
 from agrl.core.initial_states import InitialStateDistribution
 from agrl.core.observation import policy_observation
 from agrl.core.parameters import DestinationMotion
@@ -906,3 +907,32 @@ def test_baseline_log_prob_is_the_baselines_on_the_predicted_destination(relabel
         torch.testing.assert_close(rows["baseline_log_prob"], expected)
         # A confident baseline: its argmax log-probability, 10 - log(e^10 + 6), not a uniform -log 7.
         torch.testing.assert_close(expected, torch.full_like(expected, 10.0 - math.log(math.exp(10.0) + 6.0)))
+
+
+def test_irregular_prediction_extends_each_episode_with_its_last_speed_and_turn_rate(torch_one_thread):
+    """Irregular destinations redraw speed and turn rate at random: inside an episode the prediction is the
+    recorded track; past its last recorded transition it keeps the last recorded (speed, turn rate)."""
+    collected = Collected(MotionKind.IRREGULAR, seed=3)
+    flat = collected.flat()
+    transform = collected.transform()
+    starts = starts_of(flat)
+    prediction, motion = transform._destination_prediction(flat, starts, flat.get(TRAJECTORY_KEY))
+    traj_ids = flat.get(TRAJECTORY_KEY)
+    airspace = collected.env.params.simulation.airspace
+    extended = 0
+    for episode, start in enumerate(starts.tolist()):
+        rows = flat[start:][: int((traj_ids == traj_ids[start]).sum())]
+        recorded = torch.stack((rows["next", "destination_speed"], rows["next", "destination_turn_rate"]), -1)
+        length = recorded.shape[0]
+        torch.testing.assert_close(motion[episode, :length], recorded)
+        torch.testing.assert_close(motion[episode, length:], recorded[-1].expand(BUDGET - length, 2))
+        live = length - int(bool(rows["next", "done"][-1]))  # the last recorded position is frozen on a done row
+        torch.testing.assert_close(prediction[episode, 1: live + 1], rows["next", "destination_state"][:live])
+        for step in range(live, BUDGET):  # one decision of the motion model per step, from the prediction
+            following = move_destination(DestinationState.from_tensor(prediction[episode, step : step + 1]),
+                                         recorded[-1:, 0], recorded[-1:, 1], 3.0,
+                                         (airspace.x_min, airspace.x_max), (airspace.y_min, airspace.y_max))
+            torch.testing.assert_close(prediction[episode, step + 1], following.to_tensor()[0])
+            extended += 1
+    assert extended > 0, "some episodes must end (or be cut by the batch) before the budget"
+    assert bool((motion[..., 1] != 0).any()) and motion[..., 0].unique().numel() > 2, "the motion really varies"
