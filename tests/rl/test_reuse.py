@@ -817,24 +817,34 @@ def test_pretrained_with_a_different_actor_is_a_one_line_error(run_cli, tiny_arg
     assert "Traceback" not in result.stderr
 
 
-def test_reuse_resume_matches_an_uninterrupted_run_bitwise(tmp_path, compose_train, tiny_args, steady_baseline):
+@pytest.mark.parametrize("task", [
+    ("task=uniform", "speed=50"),
+    # The irregular destination's random redraws, with the start-box curriculum on (the tiny runs turn it off).
+    ("task=irregular", "curriculum.enabled=true", "method.use_curriculum=true", "curriculum.promotion_success=0.01"),
+], ids=["uniform", "irregular+curriculum"])
+def test_reuse_resume_matches_an_uninterrupted_run_bitwise(tmp_path, compose_train, tiny_args, steady_baseline,
+                                                          task):
     """4 reuse iterations in a row == 2, then a resumed Trainer for 2 more (the kept rows are in the checkpoint)."""
     from agrl.rl.checkpoint import load_checkpoint
     from agrl.rl.trainer import Trainer
 
-    overrides = ["task=uniform", "speed=50", "method=reuse", f"method.baseline={steady_baseline}",
+    overrides = [*task, "method=reuse", f"method.baseline={steady_baseline}",
                  "method.max_candidates=4", *SCENARIO_START]
     straight, half = tmp_path / "straight", tmp_path / "half"
     Trainer(compose_train(*tiny_args({"ppo.total_frames": 4 * 512}), *overrides), straight).train()
     Trainer(compose_train(*tiny_args({"ppo.total_frames": 2 * 512}), *overrides), half).train()
     first = load_checkpoint(half / "checkpoints" / "latest.pt")
     assert first["reuse"]["carry"]["lengths"].sum() > 0, "episodes were carried over at the cut"
+    if "curriculum.enabled=true" in task:  # resumed below the full start box
+        assert first["counters"]["curriculum_scale"] < 1.0
     config = compose_train(*tiny_args({"ppo.total_frames": 4 * 512}), *overrides)
     Trainer(config, half, resume_payload=first).train()
     expected = load_checkpoint(straight / "checkpoints" / "latest.pt")
     resumed = load_checkpoint(half / "checkpoints" / "latest.pt")
     for key in ("actor", "critic", "reuse"):
         assert_equal_nested(resumed[key], expected[key], key)
+    for key in ("iteration", "frames", "curriculum_scale"):
+        assert resumed["counters"][key] == expected["counters"][key], key
 
 
 def assert_equal_nested(a, b, where: str) -> None:
