@@ -127,6 +127,14 @@ def _composed_parameters(overrides: tuple[str, ...]) -> GuidanceParameters:
     return to_guidance_parameters(config.task, config.reward, config.simulation)
 
 
+def scenario_reset(env: GuidanceEnv, options: dict[str, Any]):
+    """``reset(options=...)``'s initial conditions as a :meth:`GuidanceEnv.scenario` (single and vector env)."""
+    unknown = sorted(set(options) - set(SCENARIO_KEYS))
+    if unknown or "aircraft_state" not in options:
+        _fail("options", options, f"a dict with aircraft_state and optionally {', '.join(SCENARIO_KEYS[1:])}")
+    return env.scenario(**{key: torch.as_tensor(np.asarray(value, dtype=np.float32)) for key, value in options.items()})
+
+
 def observation_bounds(params: GuidanceParameters) -> tuple[np.ndarray, np.ndarray]:
     """Finite bounds of :func:`agrl.core.observation.policy_observation` for ``params``.
 
@@ -247,13 +255,6 @@ class GuidanceGymEnv(gymnasium.Env):
         return potential_row(self._aircraft, self._destination, self._last_action, self._action_before_last,
                              terminal, self.params.reward)
 
-    def _scenario(self, options: dict[str, Any]):
-        unknown = sorted(set(options) - set(SCENARIO_KEYS))
-        if unknown or "aircraft_state" not in options:
-            _fail("options", options, f"a dict with aircraft_state and optionally {', '.join(SCENARIO_KEYS[1:])}")
-        return self.env.scenario(**{key: torch.as_tensor(np.asarray(value, dtype=np.float32))
-                                    for key, value in options.items()})
-
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
@@ -261,7 +262,7 @@ class GuidanceGymEnv(gymnasium.Env):
             self.env.set_seed(int(seed))
         with torch.no_grad():
             if options:
-                state = self._scenario(options)["scenario"]
+                state = scenario_reset(self.env, options)["scenario"]
             else:  # GuidanceEnv._reset's draws, in its order, without its TensorDict and torch observation
                 params = self.params
                 speed, turn_rate = params.destination.initial_motion(1, self.env.generator, self.env.device)

@@ -36,7 +36,7 @@ from gymnasium.vector.utils import batch_space
 
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import NUM_ACTIONS, SCENARIO_KEYS, GuidanceEnv
-from agrl.envs.gym import _fail, guidance_parameters, observation_bounds
+from agrl.envs.gym import _fail, guidance_parameters, observation_bounds, scenario_reset
 
 #: Entries of the TorchRL state that make a row's state (what a reset replaces).
 _ROW_KEYS = (*SCENARIO_KEYS, "last_action", "action_before_last", "step_count", "episode_return",
@@ -95,13 +95,6 @@ class GuidanceVectorEnv(VectorEnv):
         self._all_rows = np.ones(self.num_envs, dtype=bool)
 
     # ------------------------------------------------------------------ helpers
-    def _scenario(self, options: dict[str, Any]):
-        unknown = sorted(set(options) - set(SCENARIO_KEYS))
-        if unknown or "aircraft_state" not in options:
-            _fail("options", options, f"a dict with aircraft_state and optionally {', '.join(SCENARIO_KEYS[1:])}")
-        return self.env.scenario(**{key: torch.as_tensor(np.asarray(value, dtype=np.float32))
-                                    for key, value in options.items()})
-
     def _outputs(self, state) -> tuple[np.ndarray, dict[str, Any]]:
         observation = state["observation"].cpu().numpy().copy()
         info = {
@@ -133,7 +126,7 @@ class GuidanceVectorEnv(VectorEnv):
         if seed is not None:
             self.env.set_seed(int(seed))
         with torch.no_grad():
-            self._state = self.env.reset(self._scenario(options)) if options else self.env.reset()
+            self._state = self.env.reset(scenario_reset(self.env, options)) if options else self.env.reset()
         self._autoreset[:] = False
         return self._outputs(self._state)
 

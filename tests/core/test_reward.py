@@ -206,21 +206,29 @@ def test_shaping_telescopes_over_an_episode(kind, reward):
     assert outcomes_seen  # at least one terminal kind observed
 
 
+EPISODE_START = torch.tensor([-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0])  # mid-airspace, heading +x
+
+
+def env_rewards(reward_params: RewardParameters, actions: list[int]) -> tuple[list[float], int]:
+    """The env's reward at each decision of ``actions`` from EPISODE_START (none ends the episode), and the
+    episode's instruction count."""
+    env = GuidanceEnv(GuidanceParameters(reward=reward_params), num_envs=1, seed=0)
+    td = env.reset(env.scenario(aircraft_state=EPISODE_START))
+    out = []
+    for action in actions:
+        td["action"] = torch.tensor([action])
+        td = env.step(td)
+        assert td["next", "outcome"].tolist() == [Outcome.RUNNING]
+        out.append(float(td["next", "reward"]))
+        td = env.step_mdp(td)
+    return out, int(td["instruction_count"])
+
+
 def test_env_reward_switches():
-    start = torch.tensor([-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0])
     actions = [0, 3, 3, 1]  # hold, change, hold, change
 
     def rewards(reward_params):
-        env = GuidanceEnv(GuidanceParameters(reward=reward_params), num_envs=1, seed=0)
-        td = env.reset(env.scenario(aircraft_state=start))
-        out = []
-        for action in actions:
-            td["action"] = torch.tensor([action])
-            td = env.step(td)
-            assert td["next", "outcome"].tolist() == [Outcome.RUNNING]
-            out.append(float(td["next", "reward"]))
-            td = env.step_mdp(td)
-        return out
+        return env_rewards(reward_params, actions)[0]
 
     gamma = 0.99
     off = rewards(RewardParameters(use_continuous_action=False, use_position=False))
@@ -252,24 +260,10 @@ def test_switch_cost_reward_by_hand():
 
 
 def test_env_switch_cost_adds_minus_cost_per_instruction():
-    start = torch.tensor([-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0])
     actions = [2, 2, 0, 5, 5, 6]  # instructions: 0->2, 2->0, 0->5, 5->6 = 4
     cost = 0.4
-
-    def rewards(reward_params):
-        env = GuidanceEnv(GuidanceParameters(reward=reward_params), num_envs=1, seed=0)
-        td = env.reset(env.scenario(aircraft_state=start))
-        out = []
-        for action in actions:
-            td["action"] = torch.tensor([action])
-            td = env.step(td)
-            assert td["next", "outcome"].tolist() == [Outcome.RUNNING]
-            out.append(float(td["next", "reward"]))
-            td = env.step_mdp(td)
-        return out, int(td["instruction_count"])
-
-    plain, _ = rewards(RewardParameters())
-    priced, instructions = rewards(RewardParameters(switch_cost=cost))
+    plain, _ = env_rewards(RewardParameters(), actions)
+    priced, instructions = env_rewards(RewardParameters(switch_cost=cost), actions)
     assert instructions == 4
     expected = [p - cost * c for p, c in zip(plain, [1, 0, 1, 1, 0, 1], strict=True)]
     assert priced == pytest.approx(expected, abs=1e-6)
