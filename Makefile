@@ -34,6 +34,7 @@ test-slow: install
 bench: install
 	$(PY) -m agrl.bench $(ARGS)
 	$(PY) -m agrl.bench_reuse
+	$(PY) -m agrl.bench_peer
 
 lint: install
 	$(PY) -m ruff check agrl tests

@@ -3,16 +3,18 @@
 Both train on the same batched simulator with the same batch geometry (``--num-envs`` 512 envs x
 ``--steps`` 64 decisions per iteration, 4 epochs, minibatch 512, actor and critic 2 x 128 tanh, the
 paper's learning rate 5e-4 and gamma 0.99; PPO clip 0.2, GAE 0.95, entropy 0.01, value 0.5, gradient
-norm 0.5 as ``conf/ppo/default.yaml``), one after the other in the same sitting, and each reports
-training **decisions per second** from its second iteration on (the first one carries start-up and,
-with ``--compile``, the ``torch.compile`` of the simulation step). Prints one JSON line per
-trainer and a ``ratio`` line (agrl / stable-baselines3).
+norm 0.5), one after the other in the same process, and each reports the median **seconds of one PPO
+iteration**, split into collection (with GAE) and update (the epochs of minibatches), from its second
+iteration on (the first one carries start-up and, with ``--compile``, the ``torch.compile`` of the
+simulation step). Prints one ``ppo_iteration_seconds`` line per trainer and a ``ratio`` line
+(agrl's decisions/s over stable-baselines3's; ``update_ratio`` and ``collection_ratio`` per part).
 
 stable-baselines3 is the ``bench`` extra (``pip install 'agrl[bench]'``; it leaves torch alone). It
 sees the env through :class:`Sb3VectorEnv`, a thin adapter from
 :class:`agrl.envs.gym_vector.GuidanceVectorEnv` (same-step autoreset) to its ``VecEnv`` interface.
-agrl's trainer runs as ``python -m agrl.train`` in a subprocess with matching overrides (curriculum
-off, no periodic evaluation, a 16-episode final evaluation excluded from the timing).
+agrl's side is :class:`agrl.rl.trainer.Trainer`, the one ``python -m agrl.train`` runs, built from
+``conf/`` with matching overrides (curriculum off); each iteration is its collector's next batch, then
+:meth:`~agrl.rl.trainer.Trainer.learn`.
 
 Example::
 
@@ -22,10 +24,9 @@ Example::
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
-import subprocess
+import statistics
 import sys
 import tempfile
 import time
@@ -95,96 +96,122 @@ def make_sb3_vector_env(num_envs: int, compile: bool, seed: int, **task):
     return Sb3VectorEnv()
 
 
-def bench_sb3(num_envs: int, steps: int, iterations: int, compile: bool, seed: int, task: dict) -> dict:
-    """Train SB3 PPO for ``iterations`` rollouts + updates; decisions/s from the second iteration on."""
+def iteration_record(trainer: str, collection: list[float], update: list[float], decisions: int) -> dict:
+    """Median seconds of one PPO iteration's collection (with GAE) and update (epochs of minibatches)."""
+    collection_s, update_s = statistics.median(collection), statistics.median(update)
+    total = statistics.median(c + u for c, u in zip(collection, update, strict=True))
+    return {"name": "ppo_iteration_seconds", "trainer": trainer, "value": round(total, 3), "unit": "s/iteration",
+            "collection_s": round(collection_s, 3), "update_s": round(update_s, 3),
+            "decisions_per_second": round(decisions / total, 1), "decisions_per_iteration": decisions,
+            "iterations_timed": len(collection)}
+
+
+def bench_sb3(num_envs: int, steps: int, minibatch: int, iterations: int, compile: bool, seed: int,
+              task: dict) -> dict:
+    """Train SB3 PPO for ``iterations`` rollouts + updates after a warm-up one; the median split of an iteration."""
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
 
-    starts: list[float] = []
+    marks: list[tuple[str, float]] = []
 
     class IterationClock(BaseCallback):
         def _on_rollout_start(self) -> None:
-            starts.append(time.perf_counter())
+            marks.append(("start", time.perf_counter()))
+
+        def _on_rollout_end(self) -> None:  # called before SB3 computes GAE, which then counts as collection
+            marks.append(("end", time.perf_counter()))
 
         def _on_step(self) -> bool:
             return True
 
     env = make_sb3_vector_env(num_envs, compile, seed, **task)
     model = PPO(
-        "MlpPolicy", env, n_steps=steps, batch_size=512, n_epochs=4, learning_rate=5e-4, gamma=0.99,
+        "MlpPolicy", env, n_steps=steps, batch_size=minibatch, n_epochs=4, learning_rate=5e-4, gamma=0.99,
         gae_lambda=0.95, clip_range=0.2, ent_coef=0.01, vf_coef=0.5, max_grad_norm=0.5, seed=seed, device="cpu",
         policy_kwargs={"net_arch": {"pi": [128, 128], "vf": [128, 128]}, "activation_fn": torch.nn.Tanh},
         verbose=0,
     )
     model.learn(total_timesteps=(iterations + 2) * num_envs * steps, callback=IterationClock())
-    # starts[i] is the start of rollout i; iteration i (rollout + update) ends where i + 1 starts.
-    timed = len(starts) - 2  # rollouts 1 .. len-2 each followed by a complete update and the next start
-    seconds = starts[-1] - starts[1]
     env.close()
-    return {"name": "peer_sb3_ppo_decisions_per_second", "value": round(timed * num_envs * steps / seconds, 1),
-            "unit": "decisions/s", "iterations_timed": timed, "seconds": round(seconds, 2)}
+    starts = [when for kind, when in marks if kind == "start"]
+    # Rollout i runs from starts[i] to its end mark; its update runs from there to starts[i + 1].
+    # The first iteration carries start-up (and the simulator's compilation); it is left out.
+    collection = [starts[i + 1] - starts[i] for i in range(1, len(starts) - 1)]
+    ends = [when for kind, when in marks if kind == "end"]
+    update = [starts[i + 1] - ends[i] for i in range(1, len(starts) - 1)]
+    collection = [c - u for c, u in zip(collection, update, strict=True)]
+    return iteration_record("stable-baselines3", collection, update, num_envs * steps)
 
 
-def bench_agrl(num_envs: int, steps: int, iterations: int, compile: bool, seed: int, task: dict,
-               threads: int | None) -> dict:
-    """Run ``python -m agrl.train`` with the same geometry; decisions/s from its metrics.csv (iterations 2..)."""
+def bench_agrl(num_envs: int, steps: int, minibatch: int, iterations: int, compile: bool, seed: int,
+               task: dict) -> dict:
+    """agrl's Trainer (the one ``python -m agrl.train`` runs) with the same geometry: collection + GAE, update."""
+    from agrl.config import compose_config, load_config
+    from agrl.rl.trainer import Trainer
+
+    overrides = [
+        f"task={task['task']}", f"ppo.num_envs={num_envs}", f"ppo.steps_per_env={steps}", "ppo.epochs=4",
+        f"ppo.minibatch_size={minibatch}", "ppo.learning_rate=5e-4", "curriculum.enabled=false", "progress=false",
+        f"seed={seed}", f"simulation.compile={str(compile).lower()}",
+    ]
+    config = load_config(compose_config(*overrides))
     with tempfile.TemporaryDirectory() as folder:
-        overrides = [
-            f"task={task['task']}", f"ppo.num_envs={num_envs}", f"ppo.steps_per_env={steps}", "ppo.epochs=4",
-            "ppo.minibatch_size=512", f"ppo.total_frames={(iterations + 1) * num_envs * steps}",
-            "ppo.max_minutes=0", "eval.interval=0", "eval.episodes=16", "curriculum.enabled=false",
-            "target_success=0", "checkpoint_interval=1000", "progress=false", f"seed={seed}",
-            f"simulation.compile={str(compile).lower()}", f"hydra.run.dir={folder}/run",
-        ]
-        if "speed" in task:
-            overrides.append(f"speed={task['speed']}")
-        environment = dict(os.environ)
-        if threads is not None:
-            environment["OMP_NUM_THREADS"] = str(threads)
-        completed = subprocess.run([sys.executable, "-m", "agrl.train", *overrides], capture_output=True, text=True,
-                                   env=environment, check=False)
-        if completed.returncode != 0:
-            raise SystemExit(f"agrl.bench_peer: error: python -m agrl.train failed: {completed.stderr[-2000:]}")
-        with (Path(folder) / "run" / "metrics.csv").open() as file:
-            rows = [row for row in csv.DictReader(file) if row.get("frames") and row.get("wall_time")]
-    frames = [float(row["frames"]) for row in rows]
-    wall = [float(row["wall_time"]) for row in rows]
-    seconds = wall[-1] - wall[0]
-    return {"name": "peer_agrl_trainer_decisions_per_second", "value": round((frames[-1] - frames[0]) / seconds, 1),
-            "unit": "decisions/s", "iterations_timed": len(rows) - 1, "seconds": round(seconds, 2)}
+        trainer = Trainer(config, Path(folder))
+        batches = iter(trainer.collector)
+        collection, update = [], []
+        for _ in range(iterations + 1):
+            start = time.perf_counter()
+            data = next(batches)
+            middle = time.perf_counter()
+            trainer.learn(data)
+            collection.append(middle - start)
+            update.append(time.perf_counter() - middle)
+        trainer.collector.shutdown()
+    return iteration_record("agrl", collection[1:], update[1:], num_envs * steps)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m agrl.bench_peer", description=__doc__.splitlines()[0])
     parser.add_argument("--num-envs", type=int, default=512)
     parser.add_argument("--steps", type=int, default=64, help="decisions per env per iteration")
+    parser.add_argument("--minibatch", type=int, default=512, help="minibatch size (default 512, Table 2)")
     parser.add_argument("--iterations", type=int, default=4, help="timed iterations per trainer (after one warm-up)")
     parser.add_argument("--compile", action=argparse.BooleanOptionalAction, default=True,
                         help="fuse the simulation step with torch.compile in both (default on, as training)")
     parser.add_argument("--threads", type=int, default=None, help="torch threads for both (default torch's)")
+    parser.add_argument("--trainers", nargs="+", choices=("agrl", "stable-baselines3"),
+                        default=["agrl", "stable-baselines3"], help="which trainers to time (default both)")
     parser.add_argument("--task", default="fixed")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
-    for name in ("num_envs", "steps", "iterations"):
+    for name in ("num_envs", "steps", "minibatch", "iterations"):
         if getattr(args, name) < 1 or (name == "iterations" and args.iterations < 2):
             parser.error(f"--{name.replace('_', '-')}={getattr(args, name)} is not allowed: a positive integer "
                          "(--iterations: at least 2)")
-    _sb3()
+    if "stable-baselines3" in args.trainers:
+        _sb3()
     import torch
 
     if args.threads is not None:
         torch.set_num_threads(args.threads)
     task = {"task": args.task}
     load = os.getloadavg()[0]
-    sb3 = bench_sb3(args.num_envs, args.steps, args.iterations, args.compile, args.seed, task)
-    print(json.dumps(sb3), flush=True)
-    agrl = bench_agrl(args.num_envs, args.steps, args.iterations, args.compile, args.seed, task, args.threads)
-    print(json.dumps(agrl), flush=True)
-    print(json.dumps({"name": "ratio_agrl_over_sb3", "value": round(agrl["value"] / sb3["value"], 3), "unit": "x",
-                      "num_envs": args.num_envs, "steps": args.steps, "compile": args.compile,
-                      "threads": torch.get_num_threads(), "load_average_1min_at_start": round(load, 2),
-                      "load_average_1min_at_end": round(os.getloadavg()[0], 2)}), flush=True)
+    records = {}
+    for trainer in args.trainers:
+        bench = bench_agrl if trainer == "agrl" else bench_sb3
+        records[trainer] = bench(args.num_envs, args.steps, args.minibatch, args.iterations, args.compile,
+                                 args.seed, task)
+        print(json.dumps(records[trainer]), flush=True)
+    if len(records) == 2:
+        agrl, sb3 = records["agrl"], records["stable-baselines3"]
+        print(json.dumps({"name": "ratio_agrl_over_sb3", "value": round(agrl["decisions_per_second"]
+                                                                         / sb3["decisions_per_second"], 3),
+                          "unit": "x", "update_ratio": round(sb3["update_s"] / agrl["update_s"], 3),
+                          "collection_ratio": round(sb3["collection_s"] / agrl["collection_s"], 3),
+                          "num_envs": args.num_envs, "steps": args.steps, "compile": args.compile,
+                          "threads": torch.get_num_threads(), "load_average_1min_at_start": round(load, 2),
+                          "load_average_1min_at_end": round(os.getloadavg()[0], 2)}), flush=True)
     return 0
 
 

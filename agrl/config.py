@@ -313,6 +313,7 @@ class TrainConfig:
     radius: float | None = None
     seed: int = 0
     device: str = "cpu"
+    threads: int | None = None  # torch intra-op threads; None: torch's default (one per core)
     resume: str | None = None
     checkpoint_interval: int = 10
     progress: bool = True
@@ -320,6 +321,7 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         _require_device("device", self.device)
+        _require(self.threads is None or self.threads >= 1, "threads", self.threads, "null or an integer >= 1")
         _require(self.checkpoint_interval >= 1, "checkpoint_interval", self.checkpoint_interval, ">= 1")
         _require(0 <= self.target_success <= 1, "target_success", self.target_success, "[0, 1]")
 

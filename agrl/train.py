@@ -25,7 +25,7 @@ from agrl.rl.checkpoint import CheckpointError, load_checkpoint, resolve_checkpo
 log = logging.getLogger("agrl.train")
 
 #: Values a resumed run may take from the command line; all else comes from the checkpoint.
-RESUMABLE_OVERRIDES = ("ppo.total_frames", "ppo.max_minutes", "target_success", "progress", "device",
+RESUMABLE_OVERRIDES = ("ppo.total_frames", "ppo.max_minutes", "target_success", "progress", "device", "threads",
                        "checkpoint_interval", "eval.")
 
 

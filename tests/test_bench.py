@@ -79,3 +79,29 @@ def test_stable_baselines3_sees_the_vector_env_through_the_adapter():
     model.learn(total_timesteps=16)
     assert model.num_timesteps == 16
     env.close()
+
+
+def test_iteration_record_reports_the_median_split():
+    from agrl.bench_peer import iteration_record
+
+    record = iteration_record("agrl", collection=[1.0, 3.0, 2.0], update=[4.0, 1.0, 2.0], decisions=100)
+    assert record["collection_s"] == 2.0 and record["update_s"] == 2.0
+    assert record["value"] == 4.0  # median of the totals 5, 4, 4 (not the sum of the two medians)
+    assert record["decisions_per_second"] == 25.0 and record["iterations_timed"] == 3
+
+
+def test_peer_benchmark_prints_the_split_for_both_trainers():
+    """``python -m agrl.bench_peer`` at a tiny geometry: one iteration line per trainer and the ratio line."""
+    command = [sys.executable, "-m", "agrl.bench_peer", "--num-envs", "16", "--steps", "8", "--iterations", "2",
+               "--minibatch", "64", "--no-compile", "--threads", "1"]
+    completed = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert completed.returncode == 0, completed.stderr
+    records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
+    assert [record["name"] for record in records] == ["ppo_iteration_seconds"] * 2 + ["ratio_agrl_over_sb3"]
+    assert [record["trainer"] for record in records[:2]] == ["agrl", "stable-baselines3"]
+    for record in records[:2]:
+        assert record["decisions_per_iteration"] == 128 and record["iterations_timed"] == 2
+        assert 0 < record["collection_s"] and 0 < record["update_s"] and record["unit"] == "s/iteration"
+    ratio = records[2]
+    expected = records[0]["decisions_per_second"] / records[1]["decisions_per_second"]
+    assert ratio["value"] == pytest.approx(expected, rel=1e-2) and ratio["threads"] == 1

@@ -46,7 +46,9 @@ from agrl.rl.ppo import (
     clip_fraction_by_source,
     make_advantage,
     make_loss,
+    make_optimizer,
     ppo_update,
+    update_fields,
 )
 from agrl.rl.reuse import PolicyReuseTransform, relabelled_ppo_targets
 from agrl.rl.run_state import (
@@ -81,6 +83,8 @@ class Trainer:
         self.checkpoint_dir = self.run_dir / "checkpoints"
         self.device = torch.device(cfg.device)
         self.frames_per_batch = cfg.ppo.num_envs * cfg.ppo.steps_per_env
+        if cfg.threads is not None:
+            torch.set_num_threads(cfg.threads)
         seed_everything(cfg.seed)
 
         self.params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation)
@@ -133,7 +137,7 @@ class Trainer:
         # For re-played trajectories the critic's values come with the data, on valid rows only (agrl.rl.reuse).
         self.replay_advantage = make_advantage(gamma, ppo.gae_lambda, None, self.device)
         self.loss = make_loss(self.actor, self.critic, ppo.clip_epsilon, ppo.entropy_coeff, ppo.critic_coeff)
-        self.optimizer = torch.optim.Adam(self.loss.parameters(), lr=ppo.learning_rate, eps=1e-5)
+        self.optimizer = make_optimizer(self.loss, ppo.learning_rate)
 
     def _storage_size(self) -> int:
         # Relabelled episodes may be longer than the rows they replace (bounded in agrl.rl.reuse).
@@ -158,6 +162,12 @@ class Trainer:
         return TensorDictReplayBuffer(storage=LazyTensorStorage(self._storage_size(), device=self.device),
                                       sampler=SamplerWithoutReplacement(), batch_size=self.cfg.ppo.minibatch_size,
                                       transform=self.reuse)
+
+    def _buffer_rows(self, data: TensorDictBase) -> TensorDictBase:
+        """The collected rows as the buffer stores them: only the fields the update reads, except when the
+        reuse transform runs on the way in, since it re-simulates episodes from their full state."""
+        rows = data.reshape(-1)
+        return rows if self.reuse is not None else rows.select(*update_fields(self.loss))
 
     def _initial_counters(self) -> Counters:
         curriculum = self.cfg.curriculum
@@ -219,13 +229,23 @@ class Trainer:
             group["lr"] = rate
         return rate
 
-    def _update(self) -> dict[str, float]:
+    def learn(self, data: TensorDictBase) -> tuple[TensorDictBase, dict[str, float], float]:
+        """One PPO update from a collected batch: GAE, the replay buffer (through the reuse transform, Algorithm
+        1, if there is one), then epochs of minibatches. Returns the batch with its advantages, the mean loss
+        terms and the seconds spent filling the buffer (the relabelling, for reuse)."""
+        with torch.no_grad():
+            data = self.advantage(data)
+        self.buffer.empty()
+        relabel_start = time.perf_counter()
+        self.buffer.extend(self._buffer_rows(data))
+        relabel_time = time.perf_counter() - relabel_start
         ppo = self.cfg.ppo
         try:
-            return ppo_update(self.loss, self.optimizer, self.buffer, ppo.epochs, ppo.max_grad_norm,
-                              where=f"at iteration {self.counters.iteration + 1}")
+            losses = ppo_update(self.loss, self.optimizer, self.buffer, ppo.epochs, ppo.max_grad_norm,
+                                where=f"at iteration {self.counters.iteration + 1}")
         except TrainingDiverged as error:
             raise TrainingDiverged(f"{error}; last good checkpoint kept in {self.checkpoint_dir}") from None
+        return data, losses, relabel_time
 
     def _evaluation_due(self) -> bool:
         schedule = self.cfg.eval
@@ -287,13 +307,7 @@ class Trainer:
                 data = next(batches)
                 collect_time = time.perf_counter() - iteration_start
                 learning_rate = self._set_learning_rate()
-                with torch.no_grad():
-                    data = self.advantage(data)
-                self.buffer.empty()
-                relabel_start = time.perf_counter()
-                self.buffer.extend(data.reshape(-1))  # runs the reuse transform (Algorithm 1) if there is one
-                relabel_time = time.perf_counter() - relabel_start
-                losses = self._update()
+                data, losses, relabel_time = self.learn(data)
 
                 self.counters.iteration += 1
                 self.counters.frames += data.numel()

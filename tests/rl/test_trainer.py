@@ -156,3 +156,23 @@ def test_iteration_evaluation_schedule(tmp_path, compose_train, tiny_args):
         due.append(trainer._evaluation_due())
     assert due == [False, False, True, False, False, True, False]
     trainer.collector.shutdown()
+
+
+def test_threads_setting_reaches_torch(tmp_path, compose_train, tiny_args):
+    torch.set_num_threads(2)  # the fixture restores the previous count afterwards
+    trainer = Trainer(compose_train(*tiny_args({"threads": 1})), tmp_path / "run")
+    assert torch.get_num_threads() == 1
+    trainer.collector.shutdown()
+    torch.set_num_threads(2)
+    trainer = Trainer(compose_train(*tiny_args({"threads": "null"})), tmp_path / "other")
+    assert torch.get_num_threads() == 2  # null leaves torch's setting alone
+    trainer.collector.shutdown()
+
+
+def test_buffer_keeps_only_the_fields_the_update_reads(tmp_path, compose_train, tiny_args):
+    trainer = Trainer(compose_train(*tiny_args({})), tmp_path / "run")
+    data = next(iter(trainer.collector))
+    trainer.learn(data)
+    stored = set(trainer.buffer[:].keys(True, True)) - {"index"}  # "index": the buffer adds it on reading
+    assert stored == {"observation", "action", "action_log_prob", "advantage", "value_target", "state_value"}
+    trainer.collector.shutdown()
