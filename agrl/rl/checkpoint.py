@@ -73,11 +73,20 @@ def save_checkpoint(payload: dict[str, Any], path: str | Path) -> Path:
             file.write(buffer.getbuffer())
             file.flush()
             os.fsync(file.fileno())
+        # mkstemp creates the file readable by its owner only; checkpoints are meant to be shared, so they get the
+        # permissions any new file would (0666 less the umask), as torch.save would give them.
+        os.chmod(temporary, 0o666 & ~_umask())
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
     return path
+
+
+def _umask() -> int:
+    mask = os.umask(0)  # reading the umask means setting it; put it back at once
+    os.umask(mask)
+    return mask
 
 
 def load_checkpoint(path: str | Path, required: tuple[str, ...] = ("actor",)) -> dict[str, Any]:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import random
+import stat
 import threading
 from pathlib import Path
 
@@ -230,3 +232,16 @@ def test_format_1_checkpoint_still_resumes_identically(small_trainer, tmp_path):
     assert torch.equal(batches[0]["observation"], batches[2]["observation"])
     assert torch.equal(batches[0]["action"], batches[2]["action"])
     assert torch.equal(batches[1], batches[3])
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o077])
+def test_checkpoint_files_get_the_permissions_of_any_new_file(tmp_path, umask):
+    """Not the owner-only 0600 of the temporary file they are written through: checkpoints are shared."""
+    previous = os.umask(umask)
+    try:
+        save_checkpoint({"actor": {"w": torch.zeros(1)}}, tmp_path / "state.pt")
+        (tmp_path / "plain").write_bytes(b"")  # what open() gives a new file under this umask
+    finally:
+        os.umask(previous)
+    assert stat.S_IMODE((tmp_path / "state.pt").stat().st_mode) == stat.S_IMODE((tmp_path / "plain").stat().st_mode)
+    assert stat.S_IMODE((tmp_path / "state.pt").stat().st_mode) == 0o666 & ~umask
