@@ -350,7 +350,9 @@ class Trainer:
         return None
 
     def _log(self, metrics: dict[str, float]) -> None:
-        self.metrics.log(metrics, self.counters.iteration, self.counters.frames, self.counters.wall_time)
+        # Every logged step carries its iteration and wall time (the initial evaluation's too): agrl.report's rows.
+        where = {"train/iteration": self.counters.iteration, "time/wall_time": self.counters.wall_time}
+        self.metrics.log({**where, **metrics}, self.counters.frames)
 
     def final_evaluation(self) -> dict[str, Any]:
         """The paper's evaluation (``eval.episodes`` deterministic episodes) -> ``eval/eval.json``."""
