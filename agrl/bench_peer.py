@@ -22,7 +22,6 @@ Example::
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import os
 import subprocess
@@ -128,7 +127,9 @@ def bench_sb3(num_envs: int, steps: int, iterations: int, compile: bool, seed: i
 
 def bench_agrl(num_envs: int, steps: int, iterations: int, compile: bool, seed: int, task: dict,
                threads: int | None) -> dict:
-    """Run ``python -m agrl.train`` with the same geometry; decisions/s from its metrics.csv (iterations 2..)."""
+    """Run ``python -m agrl.train`` with the same geometry; decisions/s from its logged metrics (iterations 2..)."""
+    from agrl.report import read_metrics
+
     with tempfile.TemporaryDirectory() as folder:
         overrides = [
             f"task={task['task']}", f"ppo.num_envs={num_envs}", f"ppo.steps_per_env={steps}", "ppo.epochs=4",
@@ -146,8 +147,7 @@ def bench_agrl(num_envs: int, steps: int, iterations: int, compile: bool, seed: 
                                    env=environment, check=False)
         if completed.returncode != 0:
             raise SystemExit(f"agrl.bench_peer: error: python -m agrl.train failed: {completed.stderr[-2000:]}")
-        with (Path(folder) / "run" / "metrics.csv").open() as file:
-            rows = [row for row in csv.DictReader(file) if row.get("frames") and row.get("wall_time")]
+        rows = [row for row in read_metrics(Path(folder) / "run") if row["frames"] and row["wall_time"]]
     frames = [float(row["frames"]) for row in rows]
     wall = [float(row["wall_time"]) for row in rows]
     seconds = wall[-1] - wall[0]
