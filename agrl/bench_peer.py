@@ -1,9 +1,9 @@
 """``python -m agrl.bench_peer``: stable-baselines3 PPO on the gymnasium vector env against agrl's trainer.
 
 Both train on the same batched simulator with the same batch geometry (``--num-envs`` 512 envs x
-``--steps`` 64 decisions per iteration, 4 epochs, minibatch 512, actor and critic 2 x 128 tanh, the
-paper's learning rate 5e-4 and gamma 0.99; PPO clip 0.2, GAE 0.95, entropy 0.01, value 0.5, gradient
-norm 0.5 as ``conf/ppo/default.yaml``), one after the other in the same sitting, and each reports
+``--steps`` 64 decisions per iteration) and the training defaults of ``conf/`` (SB3 takes epochs, minibatch,
+learning rate, gamma, clip, GAE lambda, entropy and value coefficients, gradient norm and the network sizes
+from the composed config), one after the other in the same sitting, and each reports
 training **decisions per second** from its second iteration on (the first one carries start-up and,
 with ``--compile``, the ``torch.compile`` of the simulation step). Prints one JSON line per
 trainer and a ``ratio`` line (agrl / stable-baselines3).
@@ -109,11 +109,19 @@ def bench_sb3(num_envs: int, steps: int, iterations: int, compile: bool, seed: i
         def _on_step(self) -> bool:
             return True
 
+    from agrl.config import compose_config, load_config
+
+    config = load_config(compose_config(f"task={task['task']}"))  # agrl's training defaults, conf/
+    ppo, agent = config.ppo, config.agent
+    activation = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU, "elu": torch.nn.ELU}[agent.activation]
     env = make_sb3_vector_env(num_envs, compile, seed, **task)
     model = PPO(
-        "MlpPolicy", env, n_steps=steps, batch_size=512, n_epochs=4, learning_rate=5e-4, gamma=0.99,
-        gae_lambda=0.95, clip_range=0.2, ent_coef=0.01, vf_coef=0.5, max_grad_norm=0.5, seed=seed, device="cpu",
-        policy_kwargs={"net_arch": {"pi": [128, 128], "vf": [128, 128]}, "activation_fn": torch.nn.Tanh},
+        "MlpPolicy", env, n_steps=steps, batch_size=ppo.minibatch_size, n_epochs=ppo.epochs,
+        learning_rate=ppo.learning_rate, gamma=config.reward.gamma, gae_lambda=ppo.gae_lambda,
+        clip_range=ppo.clip_epsilon, ent_coef=ppo.entropy_coeff, vf_coef=ppo.critic_coeff,
+        max_grad_norm=ppo.max_grad_norm, seed=seed, device="cpu",
+        policy_kwargs={"net_arch": {"pi": list(agent.actor_hidden), "vf": list(agent.critic_hidden)},
+                       "activation_fn": activation},
         verbose=0,
     )
     model.learn(total_timesteps=(iterations + 2) * num_envs * steps, callback=IterationClock())
@@ -132,8 +140,8 @@ def bench_agrl(num_envs: int, steps: int, iterations: int, compile: bool, seed: 
 
     with tempfile.TemporaryDirectory() as folder:
         overrides = [
-            f"task={task['task']}", f"ppo.num_envs={num_envs}", f"ppo.steps_per_env={steps}", "ppo.epochs=4",
-            "ppo.minibatch_size=512", f"ppo.total_frames={(iterations + 1) * num_envs * steps}",
+            f"task={task['task']}", f"ppo.num_envs={num_envs}", f"ppo.steps_per_env={steps}",
+            f"ppo.total_frames={(iterations + 1) * num_envs * steps}",
             "ppo.max_minutes=0", "eval.interval=0", "eval.episodes=16", "curriculum.enabled=false",
             "target_success=0", "checkpoint_interval=1000", "progress=false", f"seed={seed}",
             f"simulation.compile={str(compile).lower()}", f"hydra.run.dir={folder}/run",
