@@ -1,12 +1,12 @@
 """``python -m agrl.bench_peer``: stable-baselines3 PPO on the gymnasium vector env against agrl's trainer.
 
 Both train on the same batched simulator with the same batch geometry (``--num-envs`` 512 envs x
-``--steps`` 64 decisions per iteration, 4 epochs, minibatch 512, actor and critic 2 x 128 tanh, the
-paper's learning rate 5e-4 and gamma 0.99; PPO clip 0.2, GAE 0.95, entropy 0.01, value 0.5, gradient
-norm 0.5), one after the other in the same process, and each reports the median **seconds of one PPO
-iteration**, split into collection (with GAE) and update (the epochs of minibatches), from its second
-iteration on (the first one carries start-up and, with ``--compile``, the ``torch.compile`` of the
-simulation step). Prints one ``ppo_iteration_seconds`` line per trainer and a ``ratio`` line
+``--steps`` 64 decisions per iteration, ``--minibatch`` 512) and the training defaults of ``conf/`` (SB3 takes
+epochs, learning rate, gamma, clip, GAE lambda, entropy and value coefficients, gradient norm and the network
+sizes from the composed config), one after the other in the same process, and each reports the median
+**seconds of one PPO iteration**, split into collection and update (the epochs of minibatches; GAE is in
+SB3's collection and in agrl's update), from its second iteration on (the first one carries start-up and,
+with ``--compile``, the ``torch.compile`` of the simulation step). Prints one ``ppo_iteration_seconds`` line per trainer and a ``ratio`` line
 (agrl's decisions/s over stable-baselines3's; ``update_ratio`` and ``collection_ratio`` per part).
 
 stable-baselines3 is the ``bench`` extra (``pip install 'agrl[bench]'``; it leaves torch alone). It
@@ -97,7 +97,8 @@ def make_sb3_vector_env(num_envs: int, compile: bool, seed: int, **task):
 
 
 def iteration_record(trainer: str, collection: list[float], update: list[float], decisions: int) -> dict:
-    """Median seconds of one PPO iteration's collection (with GAE) and update (epochs of minibatches)."""
+    """Median seconds of one PPO iteration's collection and update (GAE falls in SB3's collection and in
+    agrl's update, where the trainer computes it: a few hundredths of a second either way)."""
     collection_s, update_s = statistics.median(collection), statistics.median(update)
     total = statistics.median(c + u for c, u in zip(collection, update, strict=True))
     return {"name": "ppo_iteration_seconds", "trainer": trainer, "value": round(total, 3), "unit": "s/iteration",
@@ -119,17 +120,25 @@ def bench_sb3(num_envs: int, steps: int, minibatch: int, iterations: int, compil
         def _on_rollout_start(self) -> None:
             marks.append(("start", time.perf_counter()))
 
-        def _on_rollout_end(self) -> None:  # called before SB3 computes GAE, which then counts as collection
+        def _on_rollout_end(self) -> None:  # SB3 calls it after its GAE: GAE counts as collection here
             marks.append(("end", time.perf_counter()))
 
         def _on_step(self) -> bool:
             return True
 
+    from agrl.config import compose_config, load_config
+
+    config = load_config(compose_config(f"task={task['task']}"))  # agrl's training defaults, conf/
+    ppo, agent = config.ppo, config.agent
+    activation = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU, "elu": torch.nn.ELU}[agent.activation]
     env = make_sb3_vector_env(num_envs, compile, seed, **task)
     model = PPO(
-        "MlpPolicy", env, n_steps=steps, batch_size=minibatch, n_epochs=4, learning_rate=5e-4, gamma=0.99,
-        gae_lambda=0.95, clip_range=0.2, ent_coef=0.01, vf_coef=0.5, max_grad_norm=0.5, seed=seed, device="cpu",
-        policy_kwargs={"net_arch": {"pi": [128, 128], "vf": [128, 128]}, "activation_fn": torch.nn.Tanh},
+        "MlpPolicy", env, n_steps=steps, batch_size=minibatch, n_epochs=ppo.epochs,
+        learning_rate=ppo.learning_rate, gamma=config.reward.gamma, gae_lambda=ppo.gae_lambda,
+        clip_range=ppo.clip_epsilon, ent_coef=ppo.entropy_coeff, vf_coef=ppo.critic_coeff,
+        max_grad_norm=ppo.max_grad_norm, seed=seed, device="cpu",
+        policy_kwargs={"net_arch": {"pi": list(agent.actor_hidden), "vf": list(agent.critic_hidden)},
+                       "activation_fn": activation},
         verbose=0,
     )
     model.learn(total_timesteps=(iterations + 2) * num_envs * steps, callback=IterationClock())
@@ -151,8 +160,8 @@ def bench_agrl(num_envs: int, steps: int, minibatch: int, iterations: int, compi
     from agrl.rl.trainer import Trainer
 
     overrides = [
-        f"task={task['task']}", f"ppo.num_envs={num_envs}", f"ppo.steps_per_env={steps}", "ppo.epochs=4",
-        f"ppo.minibatch_size={minibatch}", "ppo.learning_rate=5e-4", "curriculum.enabled=false", "progress=false",
+        f"task={task['task']}", f"ppo.num_envs={num_envs}", f"ppo.steps_per_env={steps}",
+        f"ppo.minibatch_size={minibatch}", "curriculum.enabled=false", "progress=false",
         f"seed={seed}", f"simulation.compile={str(compile).lower()}",
     ]
     config = load_config(compose_config(*overrides))

@@ -1,28 +1,27 @@
 """Hydra structured configs: the schema behind ``conf/`` and its validation.
 
-The YAML files in ``conf/`` hold the values (with units and reasons); the
-dataclasses here give them types and ranges. ``load_config`` turns a composed
+The YAML files in ``conf/`` hold every value, once (with units and reasons); the
+dataclasses here give them types and ranges, and no values of their own (``MISSING``,
+or None for a field one task or method does not use). ``load_config`` turns a composed
 ``DictConfig`` into these objects and raises :class:`ConfigError` with one line
-naming the bad value and what is allowed. ``to_guidance_parameters`` maps them to
-the plain records that :mod:`agrl.envs` needs.
+naming the bad value and what is allowed. Each field that describes the task says
+which field of the env's records it sets (:func:`feeds`), so
+:func:`to_guidance_parameters` builds those records generically.
 """
 
 from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+import typing
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields, is_dataclass
 from typing import Any
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
-from agrl.core.aircraft import AircraftLimits
-from agrl.core.initial_states import InitialStateDistribution
-from agrl.core.parameters import DestinationMotion, GuidanceParameters, ManeuverLoadFactors, MotionKind
-from agrl.core.reward import RewardParameters
-from agrl.core.simulation import SimulationParameters
-from agrl.core.termination import Airspace, SuccessTolerance
+from agrl.core.parameters import GuidanceParameters, MotionKind
 
 
 class ConfigError(ValueError):
@@ -52,28 +51,44 @@ def _range_pair(key: str, pair: list[float], low: float, high: float, unit: str)
     _require(low <= pair[0] and pair[1] <= high, key, pair, f"within [{low}, {high}] {unit}")
 
 
+def feeds(target: str, convert: Callable[[Any], Any] | None = None, default: Any = MISSING) -> Any:
+    """A schema field whose value sets the :class:`GuidanceParameters` field at the dotted path ``target``
+    (``"reward.success"``), converted by ``convert`` (e.g. degrees to radians); see :func:`to_guidance_parameters`."""
+    return field(default=default, metadata={"feeds": target, "convert": convert})
+
+
 # ---------------------------------------------------------------------------- task
+# A field one task does not use is None (e.g. a fixed destination's radius); the task's own YAML sets it.
 @dataclass
 class TaskConfig:
-    name: str = "fixed"  # fixed | uniform | curved | irregular
-    speed: float = 0.0  # m/s
-    radius: float = 1_000.0  # m
-    turn_direction: int = 1  # +1 counter-clockwise, -1 clockwise
-    change_probability: float = 0.2  # irregular: chance per decision of a new speed and turn rate
-    speed_range: list[float] = field(default_factory=lambda: [10.0, 50.0])  # irregular, m/s
-    max_turn_rate_deg: float = 2.3  # irregular, deg/s
+    name: str = feeds("destination.kind", MotionKind)  # fixed | uniform | curved | irregular
+    speed: float | None = feeds("destination.speed", default=None)  # uniform, curved: m/s
+    radius: float | None = feeds("destination.radius", default=None)  # curved: m
+    turn_direction: int | None = feeds("destination.turn_direction", float, default=None)  # curved: +1 or -1
+    change_probability: float | None = feeds("destination.change_probability", default=None)  # irregular
+    speed_range: list[float] | None = feeds("destination.speed_range", default=None)  # irregular: m/s
+    max_turn_rate_deg: float | None = feeds("destination.max_turn_rate", math.radians, default=None)  # deg/s
 
     def __post_init__(self) -> None:
         kinds = [kind.value for kind in MotionKind]
         _require(self.name in kinds, "task", self.name, f"one of {', '.join(kinds)}")
+        needs = {"uniform": ("speed",), "curved": ("speed", "radius", "turn_direction"),
+                 "irregular": ("change_probability", "speed_range", "max_turn_rate_deg")}.get(self.name, ())
+        for key in needs:
+            _require(getattr(self, key) is not None, f"task.{key}", None, f"task={self.name} needs a value")
         if self.name in ("uniform", "curved"):
             _require(self.speed > 0, "speed", self.speed, f"task={self.name} needs a destination speed > 0 m/s")
         if self.name == "curved":
             _require(self.radius > 0, "radius", self.radius, "task=curved needs a turning radius > 0 m")
-        _require(self.turn_direction in (-1, 1), "task.turn_direction", self.turn_direction, "-1 or 1")
-        _require(0 <= self.change_probability <= 1, "task.change_probability", self.change_probability, "[0, 1]")
-        _range_pair("task.speed_range", self.speed_range, 0.0, 1_000.0, "m/s")
-        _require(self.max_turn_rate_deg >= 0, "task.max_turn_rate_deg", self.max_turn_rate_deg, ">= 0 deg/s")
+        if self.turn_direction is not None:
+            _require(self.turn_direction in (-1, 1), "task.turn_direction", self.turn_direction, "-1 or 1")
+        if self.change_probability is not None:
+            _require(0 <= self.change_probability <= 1, "task.change_probability", self.change_probability,
+                     "[0, 1]")
+        if self.speed_range is not None:
+            _range_pair("task.speed_range", self.speed_range, 0.0, 1_000.0, "m/s")
+        if self.max_turn_rate_deg is not None:
+            _require(self.max_turn_rate_deg >= 0, "task.max_turn_rate_deg", self.max_turn_rate_deg, ">= 0 deg/s")
 
 
 def task_label(task) -> str:
@@ -88,19 +103,19 @@ def task_label(task) -> str:
 # ---------------------------------------------------------------------------- reward
 @dataclass
 class RewardConfig:
-    name: str = "both"
-    use_continuous_action: bool = True
-    use_position: bool = True
-    c1: float = 20.0
-    c2: float = -20.0
-    c3: float = -10.0
-    c4: float = -0.1
-    c5: float = -0.01
-    c6: float = 1e-4
-    c7: float = 0.5
-    c8: float = 1e-5
-    gamma: float = 0.99
-    switch_cost: float = 0.0  # not in the paper: reward units per instruction (conf/reward/switch.yaml)
+    name: str = MISSING
+    use_continuous_action: bool = feeds("reward.use_continuous_action")
+    use_position: bool = feeds("reward.use_position")
+    c1: float = feeds("reward.success")
+    c2: float = feeds("reward.out_of_airspace")
+    c3: float = feeds("reward.budget_exhausted")
+    c4: float = feeds("reward.action_change")
+    c5: float = feeds("reward.action_hold")
+    c6: float = feeds("reward.distance_weight")
+    c7: float = feeds("reward.heading_weight")
+    c8: float = feeds("reward.altitude_weight")
+    gamma: float = feeds("reward.gamma")
+    switch_cost: float = feeds("reward.switch_cost")  # not in the paper (conf/reward/switch.yaml)
 
     def __post_init__(self) -> None:
         _require(self.c1 > 0, "reward.c1", self.c1, "> 0 (success must pay, equation 6)")
@@ -115,11 +130,11 @@ class RewardConfig:
 # ---------------------------------------------------------------------------- simulation
 @dataclass
 class ManeuverConfig:
-    turn_load_factor: float = 2.0
-    pull_up_load_factor: float = 2.0
-    push_over_load_factor: float = 0.0
-    acceleration: float = 0.3
-    deceleration: float = 0.3
+    turn_load_factor: float = feeds("maneuvers.turn")
+    pull_up_load_factor: float = feeds("maneuvers.pull_up")
+    push_over_load_factor: float = feeds("maneuvers.push_over")
+    acceleration: float = feeds("maneuvers.acceleration")
+    deceleration: float = feeds("maneuvers.deceleration")
 
     def __post_init__(self) -> None:
         _require(self.turn_load_factor > 1, "simulation.maneuvers.turn_load_factor", self.turn_load_factor,
@@ -134,31 +149,28 @@ class ManeuverConfig:
 
 @dataclass
 class InitialStateConfig:
-    x_range: list[float] = field(default_factory=lambda: [-9_500.0, 7_000.0])
-    y_range: list[float] = field(default_factory=lambda: [-9_500.0, 9_500.0])
-    z_range: list[float] = field(default_factory=lambda: [0.0, 5_000.0])
-    speed_range: list[float] = field(default_factory=lambda: [200.0, 200.0])
-    min_horizontal_distance: float = 2_000.0
+    x_range: list[float] = feeds("initial_state.x_range")
+    y_range: list[float] = feeds("initial_state.y_range")
+    z_range: list[float] = feeds("initial_state.z_range")
+    speed_range: list[float] = feeds("initial_state.speed_range")
+    min_horizontal_distance: float = feeds("initial_state.min_horizontal_distance")
 
 
 @dataclass
 class SimulationConfig:
-    integration_step: float = 0.02
-    decision_period: float = 3.0
-    max_decisions: int = 200
-    airspace: dict[str, float] = field(
-        default_factory=lambda: {"x_min": -10_000.0, "x_max": 10_000.0, "y_min": -10_000.0,
-                                 "y_max": 10_000.0, "z_min": 0.0, "z_max": 5_000.0}
-    )
-    distance_tolerance: float = 1_000.0
-    altitude_tolerance: float = 200.0
-    heading_tolerance_deg: float = 30.0
-    min_speed: float = 100.0
-    max_speed: float = 250.0
-    max_flight_path_angle_deg: float = 30.0
-    maneuvers: ManeuverConfig = field(default_factory=ManeuverConfig)
-    initial_state: InitialStateConfig = field(default_factory=InitialStateConfig)
-    compile: bool = True
+    integration_step: float = feeds("simulation.integration_step")
+    decision_period: float = feeds("simulation.decision_period")
+    max_decisions: int = feeds("max_decisions")
+    airspace: dict[str, float] = feeds("simulation.airspace")
+    distance_tolerance: float = feeds("simulation.tolerance.distance")
+    altitude_tolerance: float = feeds("simulation.tolerance.altitude")
+    heading_tolerance_deg: float = feeds("simulation.tolerance.heading", math.radians)
+    min_speed: float = feeds("simulation.limits.min_speed")
+    max_speed: float = feeds("simulation.limits.max_speed")
+    max_flight_path_angle_deg: float = feeds("simulation.limits.max_flight_path_angle", math.radians)
+    maneuvers: ManeuverConfig = MISSING
+    initial_state: InitialStateConfig = MISSING
+    compile: bool = feeds("compile")
 
     def __post_init__(self) -> None:
         _require(self.integration_step > 0, "simulation.integration_step", self.integration_step, "> 0 s")
@@ -192,10 +204,10 @@ class SimulationConfig:
 # ---------------------------------------------------------------------------- agent, PPO, method
 @dataclass
 class AgentConfig:
-    name: str = "default"
-    actor_hidden: list[int] = field(default_factory=lambda: [128, 128])
-    critic_hidden: list[int] = field(default_factory=lambda: [128, 128])
-    activation: str = "tanh"
+    name: str = MISSING
+    actor_hidden: list[int] = MISSING
+    critic_hidden: list[int] = MISSING
+    activation: str = MISSING
 
     def __post_init__(self) -> None:
         _require(all(width > 0 for width in self.actor_hidden), "agent.actor_hidden", self.actor_hidden,
@@ -208,22 +220,23 @@ class AgentConfig:
 
 @dataclass
 class PPOConfig:
-    num_envs: int = 512
-    steps_per_env: int = 64
-    total_frames: int = 20_000_000
-    max_minutes: float = 15.0  # 0 = no wall-time limit
-    epochs: int = 4
-    minibatch_size: int = 512
-    learning_rate: float = 5e-4
-    gae_lambda: float = 0.95
-    clip_epsilon: float = 0.2
-    entropy_coeff: float = 0.01
-    critic_coeff: float = 0.5
-    max_grad_norm: float = 0.5
-    anneal_lr: bool = False
+    num_envs: int = MISSING
+    steps_per_env: int = MISSING
+    total_frames: int = MISSING
+    max_minutes: float = MISSING  # 0 = no wall-time limit
+    epochs: int = MISSING
+    minibatch_size: int = MISSING
+    learning_rate: float = MISSING
+    gae_lambda: float = MISSING
+    clip_epsilon: float = MISSING
+    entropy_coeff: float = MISSING
+    critic_coeff: float = MISSING
+    max_grad_norm: float = MISSING
+    anneal_lr: bool = MISSING
+    collector_workers: int = MISSING  # 1 = one Collector in this process; N > 1 = MultiSyncCollector
 
     def __post_init__(self) -> None:
-        for key in ("num_envs", "steps_per_env", "total_frames", "epochs", "minibatch_size"):
+        for key in ("num_envs", "steps_per_env", "total_frames", "epochs", "minibatch_size", "collector_workers"):
             _require(getattr(self, key) >= 1, f"ppo.{key}", getattr(self, key), ">= 1")
         _require(self.learning_rate > 0, "ppo.learning_rate", self.learning_rate, "> 0")
         _require(0 <= self.gae_lambda <= 1, "ppo.gae_lambda", self.gae_lambda, "[0, 1]")
@@ -232,26 +245,37 @@ class PPOConfig:
         frames = self.num_envs * self.steps_per_env
         _require(self.minibatch_size <= frames, "ppo.minibatch_size", self.minibatch_size,
                  f"<= num_envs * steps_per_env = {frames}")
+        _require(self.num_envs % self.collector_workers == 0, "ppo.collector_workers", self.collector_workers,
+                 f"a divisor of ppo.num_envs={self.num_envs} (each worker steps num_envs / collector_workers envs)")
 
 
 @dataclass
 class MethodConfig:
-    name: str = "scratch"
-    baseline: str | None = None  # checkpoint path, or "baseline" for the shipped one
-    initial_selection_factor: float = 1.0  # e at the start (Algorithm 1)
-    selection_decay: float = 2e-5  # k, subtracted from e per relabelled episode
-    candidate_stride: int = 1  # consider every n-th step as a termination step t_n
-    max_candidates: int = 16  # at most this many t_n per episode (evenly spread)
-    keep: str = "earliest"  # which successful candidate to keep: earliest | latest
-    behaviour_log_prob: str = "baseline"  # relabelled rows' PPO behaviour log-prob: current (Z's) | baseline (B's)
-    use_curriculum: bool = True  # apply the root `curriculum` (off for methods that start from a baseline)
-    start_from_baseline: bool = False  # reuse only: Z starts from B's weights (reuse + pre-training)
+    """Fields only ``reuse`` uses (Algorithm 1's knobs) are None for the other methods."""
+
+    name: str = MISSING  # scratch | pretrained | reuse
+    use_curriculum: bool = MISSING  # apply the root `curriculum` (off for methods that start from a baseline)
+    baseline: str | None = None  # pretrained, reuse: a checkpoint path, or "baseline" for the shipped one
+    initial_selection_factor: float | None = None  # e at the start (Algorithm 1)
+    selection_decay: float | None = None  # k, subtracted from e per relabelled episode
+    candidate_stride: int | None = None  # consider every n-th step as a termination step t_n
+    max_candidates: int | None = None  # at most this many t_n per episode (evenly spread)
+    keep: str | None = None  # which successful candidate to keep: earliest | latest
+    behaviour_log_prob: str | None = None  # relabelled rows' PPO behaviour log-prob: current (Z's) | baseline (B's)
+    start_from_baseline: bool | None = None  # Z starts from B's weights (reuse + pre-training)
 
     def __post_init__(self) -> None:
         _require(self.name in ("scratch", "pretrained", "reuse"), "method", self.name,
                  "one of scratch, pretrained, reuse")
         _require(self.name == "scratch" or bool(self.baseline), "method.baseline", self.baseline,
                  f"method={self.name} needs a baseline checkpoint (a path, or 'baseline')")
+        _require(not self.start_from_baseline or self.name == "reuse", "method.start_from_baseline",
+                 self.start_from_baseline, "true only with method=reuse (pretrained always starts from it)")
+        if self.name != "reuse":
+            return
+        for key in ("initial_selection_factor", "selection_decay", "candidate_stride", "max_candidates", "keep",
+                    "behaviour_log_prob", "start_from_baseline"):
+            _require(getattr(self, key) is not None, f"method.{key}", None, "method=reuse needs a value")
         _require(0 <= self.initial_selection_factor <= 1, "method.initial_selection_factor",
                  self.initial_selection_factor, "[0, 1]")
         _require(self.selection_decay >= 0, "method.selection_decay", self.selection_decay, ">= 0")
@@ -260,17 +284,15 @@ class MethodConfig:
         _require(self.keep in ("earliest", "latest"), "method.keep", self.keep, "earliest or latest")
         _require(self.behaviour_log_prob in ("current", "baseline"), "method.behaviour_log_prob",
                  self.behaviour_log_prob, "current or baseline")
-        _require(not self.start_from_baseline or self.name == "reuse", "method.start_from_baseline",
-                 self.start_from_baseline, "true only with method=reuse (pretrained always starts from it)")
 
 
 @dataclass
 class EvaluationConfig:
-    episodes: int = 1000
-    interval: int = 10  # iterations between periodic evaluations during training (0 = never)
-    interval_seconds: float = 0.0  # s of training between periodic evaluations; > 0 replaces `interval`
-    periodic_episodes: int = 256  # episodes of each periodic evaluation
-    trajectory_image: bool = True  # log each periodic evaluation's trajectory figure to TensorBoard (Images)
+    episodes: int = MISSING
+    interval: int = MISSING  # iterations between periodic evaluations during training (0 = never)
+    interval_seconds: float = MISSING  # s of training between periodic evaluations; > 0 replaces `interval`
+    periodic_episodes: int = MISSING  # episodes of each periodic evaluation
+    trajectory_image: bool = MISSING  # log each periodic evaluation's trajectory figure to TensorBoard (Images)
 
     def __post_init__(self) -> None:
         _require(self.episodes >= 1, "eval.episodes", self.episodes, ">= 1")
@@ -285,10 +307,10 @@ class CurriculumConfig:
     """Start-box curriculum: training episodes start in a shrunken box around the destination that grows
     as training succeeds (a reverse curriculum); evaluation always uses the full box."""
 
-    enabled: bool = True
-    initial_scale: float = 0.15  # fraction of the start box (about the destination's start) at first
-    scale_step: float = 0.1  # added to the fraction at each promotion
-    promotion_success: float = 0.8  # training success rate (one iteration) that earns a promotion
+    enabled: bool = MISSING
+    initial_scale: float = MISSING  # fraction of the start box (about the destination's start) at first
+    scale_step: float = MISSING  # added to the fraction at each promotion
+    promotion_success: float = MISSING  # training success rate (one iteration) that earns a promotion
 
     def __post_init__(self) -> None:
         _require(0 < self.initial_scale <= 1, "curriculum.initial_scale", self.initial_scale, "(0, 1]")
@@ -299,7 +321,7 @@ class CurriculumConfig:
 
 @dataclass
 class TrainConfig:
-    """The root config of ``python -m agrl.train``."""
+    """The root config of ``python -m agrl.train`` (values: ``conf/config.yaml``)."""
 
     task: Any = MISSING
     reward: Any = MISSING
@@ -307,38 +329,47 @@ class TrainConfig:
     agent: Any = MISSING
     ppo: Any = MISSING
     method: Any = MISSING
-    eval: EvaluationConfig = field(default_factory=EvaluationConfig)
-    curriculum: CurriculumConfig = field(default_factory=CurriculumConfig)
-    speed: float | None = None
-    radius: float | None = None
-    seed: int = 0
-    device: str = "cpu"
-    threads: int | None = None  # torch intra-op threads; None: torch's default (one per core)
-    resume: str | None = None
-    checkpoint_interval: int = 10
-    progress: bool = True
-    target_success: float = 0.995  # stop once periodic evaluation reaches this success rate (0 = never)
+    eval: EvaluationConfig = MISSING
+    curriculum: CurriculumConfig = MISSING
+    speed: float | None = MISSING
+    radius: float | None = MISSING
+    seed: int = MISSING
+    device: str = MISSING
+    threads: int | None = MISSING  # torch intra-op threads; None: torch's default (one per core)
+    resume: str | None = MISSING
+    checkpoint_interval: int = MISSING
+    progress: bool = MISSING
+    target_success: float = MISSING  # stop once periodic evaluation reaches this success rate (0 = never)
 
     def __post_init__(self) -> None:
         _require_device("device", self.device)
         _require(self.threads is None or self.threads >= 1, "threads", self.threads, "null or an integer >= 1")
         _require(self.checkpoint_interval >= 1, "checkpoint_interval", self.checkpoint_interval, ">= 1")
         _require(0 <= self.target_success <= 1, "target_success", self.target_success, "[0, 1]")
+        workers = self.ppo.collector_workers
+        _require(workers == 1 or not self.resume, "ppo.collector_workers", workers,
+                 "1 with resume (exact resume needs the single in-process collector's carried rows)")
+        curriculum = self.curriculum.enabled and self.method.use_curriculum
+        _require(workers == 1 or not curriculum, "ppo.collector_workers", workers,
+                 "1 while the start-box curriculum is on (its box lives in this process's env; "
+                 "set curriculum.enabled=false)")
+        _require(workers == 1 or self.method.name != "reuse", "ppo.collector_workers", workers,
+                 "1 with method=reuse (the reuse transform carries episodes of the single collector's envs)")
 
 
 @dataclass
 class EvaluateConfig:
-    """The root config of ``python -m agrl.evaluate``."""
+    """The root config of ``python -m agrl.evaluate`` (values: ``conf/evaluate.yaml``)."""
 
     checkpoint: str = MISSING
     task: Any = None
-    episodes: int = 1000
-    seed: int = 0
-    speed: float | None = None
-    radius: float | None = None
-    device: str = "cpu"
-    trajectories: int = 10
-    output_dir: str | None = None
+    episodes: int = MISSING
+    seed: int = MISSING
+    speed: float | None = MISSING
+    radius: float | None = MISSING
+    device: str = MISSING
+    trajectories: int = MISSING
+    output_dir: str | None = MISSING
 
     def __post_init__(self) -> None:
         _require(self.episodes >= 1, "episodes", self.episodes, ">= 1")
@@ -418,55 +449,45 @@ def config_options(group: str) -> list[str]:
                   if entry.name.endswith(".yaml"))
 
 
+def _record_values(section: Any) -> dict[str, Any]:
+    """``{record path: value}`` for every field of a config section (and its nested sections) that feeds one."""
+    values = {}
+    for spec in fields(section):
+        value = getattr(section, spec.name)
+        if is_dataclass(value):
+            values.update(_record_values(value))
+        elif "feeds" in spec.metadata and value is not None:
+            convert = spec.metadata["convert"]
+            values[spec.metadata["feeds"]] = convert(value) if convert is not None else value
+    return values
+
+
+def _build_record(record_type: type, values: dict[str, Any]) -> Any:
+    """A frozen record from ``{dotted path: value}``: nested records (and dicts) are built the same way, lists
+    become tuples, and fields no value names keep the record's own default."""
+    hints = typing.get_type_hints(record_type)
+    names = {spec.name for spec in fields(record_type)}
+    unknown = sorted({path.partition(".")[0] for path in values} - names)
+    if unknown:
+        raise TypeError(f"{record_type.__name__} has no field {unknown[0]!r}")
+    kwargs = {}
+    for name in names:
+        nested = {path.partition(".")[2]: value for path, value in values.items() if path.startswith(f"{name}.")}
+        value = values.get(name, nested or None)
+        if isinstance(value, dict):
+            value = _build_record(hints[name], value)
+        elif isinstance(value, list):
+            value = tuple(value)
+        if value is not None:
+            kwargs[name] = value
+    return record_type(**kwargs)
+
+
 def to_guidance_parameters(task: TaskConfig, reward: RewardConfig, simulation: SimulationConfig,
                            compile: bool | None = None) -> GuidanceParameters:
-    """Map validated configs to the plain records of :mod:`agrl.envs`."""
-    start = simulation.initial_state
-    maneuvers = simulation.maneuvers
-    return GuidanceParameters(
-        simulation=SimulationParameters(
-            integration_step=simulation.integration_step,
-            decision_period=simulation.decision_period,
-            airspace=Airspace(**simulation.airspace),
-            tolerance=SuccessTolerance(
-                distance=simulation.distance_tolerance,
-                altitude=simulation.altitude_tolerance,
-                heading=math.radians(simulation.heading_tolerance_deg),
-            ),
-            limits=AircraftLimits(
-                min_speed=simulation.min_speed,
-                max_speed=simulation.max_speed,
-                max_flight_path_angle=math.radians(simulation.max_flight_path_angle_deg),
-            ),
-        ),
-        maneuvers=ManeuverLoadFactors(
-            turn=maneuvers.turn_load_factor,
-            pull_up=maneuvers.pull_up_load_factor,
-            push_over=maneuvers.push_over_load_factor,
-            acceleration=maneuvers.acceleration,
-            deceleration=maneuvers.deceleration,
-        ),
-        reward=RewardParameters(
-            success=reward.c1, out_of_airspace=reward.c2, budget_exhausted=reward.c3,
-            action_change=reward.c4, action_hold=reward.c5,
-            distance_weight=reward.c6, heading_weight=reward.c7, altitude_weight=reward.c8,
-            gamma=reward.gamma,
-            use_continuous_action=reward.use_continuous_action, use_position=reward.use_position,
-            switch_cost=reward.switch_cost,
-        ),
-        initial_state=InitialStateDistribution(
-            x_range=tuple(start.x_range), y_range=tuple(start.y_range), z_range=tuple(start.z_range),
-            speed_range=tuple(start.speed_range), min_horizontal_distance=start.min_horizontal_distance,
-        ),
-        destination=DestinationMotion(
-            kind=MotionKind(task.name),
-            speed=task.speed,
-            radius=task.radius,
-            turn_direction=float(task.turn_direction),
-            change_probability=task.change_probability,
-            speed_range=tuple(task.speed_range),
-            max_turn_rate=math.radians(task.max_turn_rate_deg),
-        ),
-        max_decisions=simulation.max_decisions,
-        compile=simulation.compile if compile is None else compile,
-    )
+    """The records of :mod:`agrl.envs` from validated config sections: each value goes where its schema field's
+    :func:`feeds` says (``compile``, if given, replaces ``simulation.compile``)."""
+    values = {**_record_values(task), **_record_values(reward), **_record_values(simulation)}
+    if compile is not None:
+        values["compile"] = compile
+    return _build_record(GuidanceParameters, values)

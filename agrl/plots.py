@@ -3,7 +3,6 @@ gymnasium environment's frames (the same trajectory drawing), all also as ``(H, 
 
 from __future__ import annotations
 
-import csv
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -146,16 +145,7 @@ def episode_frame(aircraft_path, destination_path, outcome: Outcome, airspace: A
                                                 size_inches, dpi))
 
 
-def read_metrics(path: str | Path) -> list[dict[str, float]]:
-    """Rows of a run's ``metrics.csv`` (empty cells become None)."""
-    rows = []
-    with Path(path).open() as file:
-        for row in csv.DictReader(file):
-            rows.append({key: (float(value) if value not in ("", None) else None) for key, value in row.items()})
-    return rows
-
-
-def plot_success_against_time(curves: Mapping[str, Sequence[Path]], path: str | Path, title: str = "",
+def plot_success_against_time(curves: Mapping[str, Sequence[list[dict]]], path: str | Path, title: str = "",
                               key: str = "eval/success_rate") -> Path:
     """Success against training wall time, one colour per label (the paper's Figures 5, 7 and 9).
 
@@ -163,9 +153,8 @@ def plot_success_against_time(curves: Mapping[str, Sequence[Path]], path: str | 
     success of each iteration (with the curriculum, scratch runs train on easier starts first).
     """
     figure, axes = plt.subplots(figsize=(7, 4.5))
-    for colour, (label, files) in enumerate(curves.items()):
-        for number, file in enumerate(files):
-            rows = read_metrics(file)
+    for colour, (label, runs) in enumerate(curves.items()):
+        for number, rows in enumerate(runs):  # a run's rows: agrl.report.read_metrics
             train = [(row["wall_time"] / 60, row["train/success_rate"]) for row in rows
                      if row.get("train/success_rate") is not None]
             evaluated = [(row["wall_time"] / 60, row[key]) for row in rows if row.get(key) is not None]

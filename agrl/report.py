@@ -4,7 +4,8 @@
     python -m agrl.report moving runs/moving --output docs/results/moving.md
 
 Each run directory is found by its ``eval/eval.json``; its ``.hydra/config.yaml`` says which task, method,
-reward and seed it was, and its ``metrics.csv`` gives the training curve (success against wall time).
+reward and seed it was, and its TensorBoard scalars (``tensorboard/events.out.tfevents.*``, the one metrics sink
+of :mod:`agrl.rl.metrics`) give the training curve (success against wall time).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from typing import Any
 from omegaconf import OmegaConf
 
 import agrl.config  # noqa: F401  (registers the resolver used in saved configs)
-from agrl.plots import plot_success_against_time, read_metrics
+from agrl.plots import plot_success_against_time
 
 PAPER_TABLE3 = {  # success rate, average number of control times, average computational time (ms)
     "none": (0.986, 11.31, 2.98),
@@ -52,8 +53,31 @@ def method_of(run: dict) -> str:
     return "reuse_from_baseline" if method.get("start_from_baseline") else method["name"]
 
 
+def read_metrics(run_dir: str | Path) -> list[dict[str, float]]:
+    """A run's TensorBoard scalars as rows, one per logged step (decisions trained), oldest first.
+
+    Each row has ``iteration``, ``frames`` and ``wall_time`` (s) and every tag logged at that step; a tag not
+    logged there (e.g. ``eval/success_rate`` between evaluations) is absent. A step logged twice (a run resumed
+    from an earlier checkpoint repeats iterations) keeps its last value. Runs made before every step carried
+    ``train/iteration`` and ``time/wall_time`` lacked them only at step 0, the initial evaluation.
+    """
+    from tensorboard.backend.event_processing.event_accumulator import SCALARS, EventAccumulator
+
+    folder = Path(run_dir) / "tensorboard"
+    if not any(folder.glob("events.out.tfevents.*")):
+        return []
+    accumulator = EventAccumulator(str(folder), size_guidance={SCALARS: 0})  # 0 = keep every event
+    accumulator.Reload()
+    steps: dict[int, dict[str, float]] = defaultdict(dict)
+    for tag in accumulator.Tags()["scalars"]:
+        for event in accumulator.Scalars(tag):
+            steps[event.step][tag] = event.value
+    return [{"iteration": values.get("train/iteration", 0.0), "frames": float(step),
+             "wall_time": values.get("time/wall_time", 0.0), **values} for step, values in sorted(steps.items())]
+
+
 def find_runs(root: Path) -> list[dict[str, Any]]:
-    """Every finished run below ``root``: its config, evaluation and metrics file."""
+    """Every finished run below ``root``: its config, evaluation and metrics (:func:`read_metrics`)."""
     runs = []
     for evaluation in sorted(root.rglob("eval/eval.json")):
         run_dir = evaluation.parent.parent
@@ -62,7 +86,7 @@ def find_runs(root: Path) -> list[dict[str, Any]]:
             continue
         config = OmegaConf.to_container(OmegaConf.load(config_file), resolve=True)
         runs.append({"dir": run_dir, "config": config, "eval": json.loads(evaluation.read_text()),
-                     "metrics": run_dir / "metrics.csv"})
+                     "metrics": read_metrics(run_dir)})
     return runs
 
 
@@ -72,11 +96,10 @@ SUCCESS_KEY = "eval/success_rate"
 TRAINING_SUCCESS_KEY = "train/success_rate"
 
 
-def time_to_reach(metrics_file: Path, threshold: float, key: str = SUCCESS_KEY) -> tuple[int, float] | None:
-    """(iteration, wall seconds) of the first row whose ``key`` reaches ``threshold``, or None."""
-    if not metrics_file.is_file():
-        return None
-    for row in read_metrics(metrics_file):
+def time_to_reach(metrics: list[dict[str, float]], threshold: float,
+                  key: str = SUCCESS_KEY) -> tuple[int, float] | None:
+    """(iteration, wall seconds) of the first row of ``metrics`` whose ``key`` reaches ``threshold``, or None."""
+    for row in metrics:
         value = row.get(key)
         if value is not None and value >= threshold:
             return int(row["iteration"]), float(row["wall_time"])

@@ -2,16 +2,35 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
 import pytest
 from hydra import compose, initialize_config_dir
 from hydra.errors import ConfigCompositionException, MissingConfigException
+from omegaconf import MISSING
 from omegaconf.errors import ValidationError
 
-from agrl.config import ConfigError, TaskConfig, load_config, task_label, to_guidance_parameters
-from agrl.envs import MotionKind
+from agrl.config import (
+    AgentConfig,
+    ConfigError,
+    CurriculumConfig,
+    EvaluateConfig,
+    EvaluationConfig,
+    InitialStateConfig,
+    ManeuverConfig,
+    MethodConfig,
+    PPOConfig,
+    RewardConfig,
+    SimulationConfig,
+    TaskConfig,
+    TrainConfig,
+    load_config,
+    task_label,
+    to_guidance_parameters,
+)
+from agrl.envs import GuidanceParameters, MotionKind
 
 CONFIG_DIR = str((Path(__file__).resolve().parent.parent / "conf").resolve())
 
@@ -122,7 +141,8 @@ def test_config_errors_are_one_line_and_name_the_key(overrides, named):
 
 def test_task_label_names_the_motion_parameters():
     assert task_label(TaskConfig(name="uniform", speed=50.0)) == "uniform 50 m/s"
-    assert task_label(TaskConfig(name="curved", speed=20.0, radius=500.0)) == "curved 20 m/s, radius 500 m"
+    curved = TaskConfig(name="curved", speed=20.0, radius=500.0, turn_direction=1)
+    assert task_label(curved) == "curved 20 m/s, radius 500 m"
     assert task_label(TaskConfig(name="fixed")) == "fixed"
 
 
@@ -142,3 +162,93 @@ def test_unavailable_cuda_device_is_one_line_naming_what_is_available():
 def test_malformed_device_is_refused(device):
     with pytest.raises(ConfigError, match=rf"device='{device}' is not allowed: cpu, cuda or cuda:N"):
         load(f"device={device}")
+
+
+SCHEMAS = [TaskConfig, RewardConfig, SimulationConfig, ManeuverConfig, InitialStateConfig, AgentConfig, PPOConfig,
+           MethodConfig, EvaluationConfig, CurriculumConfig, TrainConfig, EvaluateConfig]
+
+
+@pytest.mark.parametrize("schema", SCHEMAS, ids=lambda schema: schema.__name__)
+def test_schemas_hold_no_values_of_their_own(schema):
+    """conf/*.yaml is the one source of values: a schema field is MISSING, or None where a task or method
+    does not use it (EvaluateConfig.task: None = the checkpoint's own task)."""
+    for spec in dataclasses.fields(schema):
+        assert spec.default_factory is dataclasses.MISSING, spec.name
+        assert spec.default in (MISSING, None), (schema.__name__, spec.name, spec.default)
+
+
+def _leaves(record, prefix=""):
+    for spec in dataclasses.fields(record):
+        value = getattr(record, spec.name)
+        if dataclasses.is_dataclass(value):
+            yield from _leaves(value, f"{prefix}{spec.name}.")
+        else:
+            yield f"{prefix}{spec.name}", value
+
+
+def test_every_task_value_comes_from_conf():
+    """Two configs that differ in every conf value give records that differ in every field but the two
+    conf does not set (gravity, the destination's start) and the task kind (both curved): no record field
+    is left to its own default."""
+    base = load("task=curved", "reward=both")
+    changed = load("task=curved", "radius=700", "speed=30", "task.turn_direction=-1", "reward=switch",
+                   "reward.use_continuous_action=false", "reward.use_position=false", "reward.c1=21", "reward.c2=-21",
+                   "reward.c3=-11", "reward.c4=-0.2", "reward.c5=-0.02", "reward.c6=2e-4", "reward.c7=0.6",
+                   "reward.c8=2e-5", "reward.gamma=0.98", "reward.switch_cost=0.2",
+                   "simulation.integration_step=0.05", "simulation.decision_period=2.0",
+                   "simulation.max_decisions=150", "simulation.airspace.x_min=-11000", "simulation.airspace.x_max=9000",
+                   "simulation.airspace.y_min=-9000", "simulation.airspace.y_max=11000",
+                   "simulation.airspace.z_min=-100", "simulation.airspace.z_max=6000",
+                   "simulation.distance_tolerance=900", "simulation.altitude_tolerance=150",
+                   "simulation.heading_tolerance_deg=20", "simulation.min_speed=90", "simulation.max_speed=260",
+                   "simulation.max_flight_path_angle_deg=25", "simulation.maneuvers.turn_load_factor=2.5",
+                   "simulation.maneuvers.pull_up_load_factor=2.5", "simulation.maneuvers.push_over_load_factor=-0.5",
+                   "simulation.maneuvers.acceleration=0.2", "simulation.maneuvers.deceleration=0.25",
+                   "simulation.initial_state.x_range=[-8000,6000]", "simulation.initial_state.y_range=[-8000,8000]",
+                   "simulation.initial_state.z_range=[100,4000]", "simulation.initial_state.speed_range=[180,210]",
+                   "simulation.initial_state.min_horizontal_distance=2500", "simulation.compile=false")
+    irregular = load("task=irregular", "task.change_probability=0.3", "task.speed_range=[5,40]",
+                     "task.max_turn_rate_deg=2.0")
+    first, second = (dict(_leaves(to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation)))
+                     for cfg in (base, changed))
+    same = {path for path in first if first[path] == second[path]}
+    # The irregular task's three values are unused by a curved destination: compare them on the irregular task.
+    unused_by_curved = {"destination.change_probability", "destination.speed_range", "destination.max_turn_rate"}
+    assert same == {"simulation.gravity", "destination.start", "destination.kind"} | unused_by_curved
+    destination = to_guidance_parameters(irregular.task, irregular.reward, irregular.simulation).destination
+    defaults = to_guidance_parameters(base.task, base.reward, base.simulation).destination  # record defaults
+    for name in ("change_probability", "speed_range", "max_turn_rate"):
+        assert getattr(destination, name) != getattr(defaults, name), name
+
+
+def test_records_convert_units_and_types():
+    cfg = load("task=irregular")
+    params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation)
+    assert params.destination.kind is MotionKind.IRREGULAR
+    assert params.destination.max_turn_rate == pytest.approx(math.radians(cfg.task.max_turn_rate_deg))
+    assert params.simulation.limits.max_flight_path_angle == pytest.approx(
+        math.radians(cfg.simulation.max_flight_path_angle_deg))
+    assert params.initial_state.x_range == tuple(cfg.simulation.initial_state.x_range)
+    assert params.compile is cfg.simulation.compile
+    assert params.reward.success == cfg.reward.c1 and params.reward.altitude_weight == cfg.reward.c8
+
+
+def test_core_record_defaults_agree_with_conf():
+    """The core records keep defaults for direct (torch-only) use; they must be conf's paper values."""
+    cfg = load("reward=both")
+    assert to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation) == GuidanceParameters(compile=True)
+
+
+def test_a_task_value_its_task_needs_is_required():
+    with pytest.raises(ConfigError, match=r"^task.radius=None is not allowed: task=curved needs a value$"):
+        load("task=curved", "task.radius=null")
+
+
+def test_collector_workers_must_divide_the_envs():
+    with pytest.raises(ConfigError, match=r"^ppo.collector_workers=3 is not allowed: a divisor of ppo.num_envs=512"):
+        load("ppo.collector_workers=3", "curriculum.enabled=false")
+    with pytest.raises(ConfigError, match=r"^ppo.collector_workers=2 is not allowed: 1 while the start-box curric"):
+        load("ppo.collector_workers=2")
+    with pytest.raises(ConfigError, match=r"^ppo.collector_workers=2 is not allowed: 1 with method=reuse"):
+        load("ppo.collector_workers=2", "method=reuse")
+    assert load("ppo.collector_workers=2", "curriculum.enabled=false").ppo.collector_workers == 2

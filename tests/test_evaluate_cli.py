@@ -8,6 +8,7 @@ import json
 import pytest
 
 from agrl.evaluate import evaluate
+from agrl.report import read_metrics
 from agrl.rl.checkpoint import load_checkpoint
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
@@ -105,7 +106,6 @@ def test_evaluating_a_best_checkpoint_file(tiny_run, compose_evaluate, tmp_path)
                                         f"output_dir={tmp_path}"))
     assert summary["checkpoint"] == str(best)
     assert summary["episodes"] == 8
-    # Written at the best periodic evaluation: its recorded success is the highest in metrics.csv.
-    periodic = [float(row["eval/success_rate"]) for row in read_csv(tiny_run.run_dir / "metrics.csv")[1:]
-                if row["eval/success_rate"] != ""]
+    # Written at the best periodic evaluation: its recorded success is the highest logged.
+    periodic = [row["eval/success_rate"] for row in read_metrics(tiny_run.run_dir)[1:] if "eval/success_rate" in row]
     assert load_checkpoint(best)["counters"]["best_success"] == max(periodic)

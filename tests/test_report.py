@@ -8,12 +8,21 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from agrl.report import find_runs, main, median_minutes_to, method_of, moving_tables, run_time_to_reach
+from agrl.report import find_runs, main, median_minutes_to, method_of, moving_tables, read_metrics, run_time_to_reach
+from agrl.rl.metrics import MetricsLog
+
+
+def write_scalars(run: Path, rows: list[dict[str, float]]) -> None:
+    """Log ``rows`` (each with ``frames``) the way training does: TensorBoard scalars through MetricsLog."""
+    log = MetricsLog(run)
+    for row in rows:
+        log.log({key: value for key, value in row.items() if key != "frames"}, row["frames"])
+    log.tensorboard.experiment.close()
 
 
 def make_run(root: Path, name: str, method: str, speed: float, success: float, curve: list[tuple[float, float]],
              start_from_baseline: bool = False, training_seconds: float | None = None) -> Path:
-    """A finished run: its Hydra config, eval.json and metrics.csv of (wall seconds, evaluation success)."""
+    """A finished run: its Hydra config, eval.json and TensorBoard scalars of (wall seconds, evaluation success)."""
     run = root / name
     (run / ".hydra").mkdir(parents=True)
     (run / "eval").mkdir()
@@ -24,10 +33,10 @@ def make_run(root: Path, name: str, method: str, speed: float, success: float, c
     if training_seconds is not None:
         final.update(training_wall_time_s=training_seconds, iterations=len(curve))
     (run / "eval" / "eval.json").write_text(json.dumps(final))
-    rows = ["iteration,frames,wall_time,eval/success_rate,train/success_rate"]
     # A point is (wall seconds, evaluation success) or (wall seconds, evaluation success, training success).
-    rows += [f"{i},{i * 100},{point[0]},{point[1]},{point[-1]}" for i, point in enumerate(curve)]
-    (run / "metrics.csv").write_text("\n".join(rows) + "\n")
+    write_scalars(run, [{"frames": i * 100, "train/iteration": i, "time/wall_time": point[0],
+                         "eval/success_rate": point[1], "train/success_rate": point[-1]}
+                        for i, point in enumerate(curve)])
     return run
 
 
@@ -81,17 +90,17 @@ def test_the_final_evaluation_is_the_last_point_when_no_periodic_one_got_there(t
 
 # ---------------------------------------------------------------------------- Table 3
 def make_reward_run(root: Path, name: str, reward: str, evaluation: dict, curve: list[tuple[float, float]]) -> None:
-    """A finished fixed-task run of one reward setting: eval.json as the trainer writes it, metrics.csv of
-    (wall seconds, periodic evaluation success)."""
+    """A finished fixed-task run of one reward setting: eval.json as the trainer writes it, TensorBoard scalars
+    of (wall seconds, periodic evaluation success)."""
     run = root / name
     (run / ".hydra").mkdir(parents=True)
     (run / "eval").mkdir()
     config = {"task": {"name": "fixed"}, "reward": {"name": reward}, "method": {"name": "scratch"}, "seed": 0}
     OmegaConf.save(OmegaConf.create(config), run / ".hydra" / "config.yaml")
     (run / "eval" / "eval.json").write_text(json.dumps(evaluation))
-    rows = ["iteration,frames,wall_time,eval/success_rate,train/success_rate"]
-    rows += [f"{i},{i * 100},{seconds},{success},{success}" for i, (seconds, success) in enumerate(curve)]
-    (run / "metrics.csv").write_text("\n".join(rows) + "\n")
+    write_scalars(run, [{"frames": i * 100, "train/iteration": i, "time/wall_time": seconds,
+                         "eval/success_rate": success, "train/success_rate": success}
+                        for i, (seconds, success) in enumerate(curve)])
 
 
 def test_table3_rows_are_mean_and_spread_over_seeds_beside_the_paper(tmp_path, capsys):
@@ -114,3 +123,22 @@ def test_table3_rows_are_mean_and_spread_over_seeds_beside_the_paper(tmp_path, c
                             "2 (1/2)", "2.0", "99.5 %, 7.22, 2.91 ms"]
     assert rows["none"] == ["none", "1", "50.0 %", "11.00", "0.25", "not reached (0/1)", "not reached",
                             "not reached (0/1)", "not reached", "98.6 %, 11.31, 2.98 ms"]
+
+
+def test_metrics_rows_come_back_from_tensorboard_one_per_step(tmp_path):
+    run = tmp_path / "run"
+    # An older run's initial evaluation (step 0) carried no iteration or wall time; a resumed session repeats
+    # iteration 2 (step 200) from the last checkpoint: its last value counts.
+    write_scalars(run, [{"frames": 0, "eval/success_rate": 0.25},
+                        {"frames": 100, "train/iteration": 1, "time/wall_time": 12.5, "train/success_rate": 0.5},
+                        {"frames": 200, "train/iteration": 2, "time/wall_time": 25.0, "train/success_rate": 0.75}])
+    write_scalars(run, [{"frames": 200, "train/iteration": 2, "time/wall_time": 26.0, "train/success_rate": 0.625,
+                         "eval/success_rate": 0.875}])
+    assert read_metrics(run) == [
+        {"iteration": 0.0, "frames": 0.0, "wall_time": 0.0, "eval/success_rate": 0.25},
+        {"iteration": 1.0, "frames": 100.0, "wall_time": 12.5, "train/iteration": 1.0, "time/wall_time": 12.5,
+         "train/success_rate": 0.5},
+        {"iteration": 2.0, "frames": 200.0, "wall_time": 26.0, "train/iteration": 2.0, "time/wall_time": 26.0,
+         "train/success_rate": 0.625, "eval/success_rate": 0.875},
+    ]
+    assert read_metrics(tmp_path / "no_run") == []

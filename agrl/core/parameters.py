@@ -70,7 +70,11 @@ class ManeuverLoadFactors:
 
 @dataclass(frozen=True)
 class GuidanceParameters:
-    """Everything that defines a guidance task for :class:`agrl.envs.GuidanceEnv`."""
+    """Everything that defines a guidance task for :class:`agrl.envs.GuidanceEnv`.
+
+    Training builds it from ``conf/`` (:func:`agrl.config.to_guidance_parameters`). The records' own defaults,
+    for torch-only use without Hydra, are conf's values for the fixed task with ``reward=both``
+    (``tests/test_config.py`` checks that they agree)."""
 
     simulation: SimulationParameters = field(default_factory=SimulationParameters)
     maneuvers: ManeuverLoadFactors = field(default_factory=ManeuverLoadFactors)
@@ -78,4 +82,6 @@ class GuidanceParameters:
     initial_state: InitialStateDistribution = field(default_factory=InitialStateDistribution)
     destination: DestinationMotion = field(default_factory=DestinationMotion)
     max_decisions: int = 200  # decision budget ("control times"), this project's choice
-    compile: bool = False  # fuse the 20 ms integration step with torch.compile
+    # Fuse the 20 ms integration step with torch.compile. No default: training turns it on
+    # (conf/simulation/paper.yaml), tests and single-episode tools choose eager; each caller says which.
+    compile: bool = field(kw_only=True)

@@ -59,13 +59,13 @@ class GuidanceEnv(EnvBase):
 
     def __init__(
         self,
-        params: GuidanceParameters | None = None,
+        params: GuidanceParameters,
         num_envs: int = 1,
         device: torch.device | str = "cpu",
         seed: int | None = None,
     ):
         super().__init__(device=device, batch_size=torch.Size([num_envs]))
-        self.params = params if params is not None else GuidanceParameters()
+        self.params = params
         if self.params.max_decisions < 1:
             raise ValueError(f"max_decisions must be >= 1, got {self.params.max_decisions}")
         self.simulator = DecisionSimulator(

@@ -1,13 +1,12 @@
 """Training metrics: per-iteration episode statistics, and where they are written.
 
-Every scalar goes to TensorBoard (``<run>/tensorboard``, TorchRL's ``TensorboardLogger``);
-a compact ``metrics.csv`` (one row per iteration, the columns :mod:`agrl.report` reads)
-is written beside it.
+One sink: every scalar goes to TensorBoard (``<run>/tensorboard``, TorchRL's ``TensorboardLogger``),
+keyed by decisions trained; :func:`agrl.report.read_metrics` reads it back for tables and figures
+(``train/iteration`` and ``time/wall_time`` are scalars like the others).
 """
 
 from __future__ import annotations
 
-import csv
 import math
 from pathlib import Path
 from typing import Any
@@ -18,10 +17,6 @@ from torchrl.record.loggers import TensorboardLogger
 
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import REWARD_PART_KEYS
-
-#: The columns of ``metrics.csv`` beyond iteration, frames and wall time.
-CSV_COLUMNS = ("train/success_rate", "eval/success_rate", "train/instructions_per_episode", "train/reuse_fraction",
-               "train/e")
 
 
 def flatten_config(config: dict[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -74,27 +69,21 @@ def progress_line(iteration: int, frames: int, wall_time: float, metrics: dict[s
 
 
 class MetricsLog:
-    """TensorBoard scalars (and images) plus ``metrics.csv``, both keyed by decisions trained."""
+    """TensorBoard scalars (and images), keyed by decisions trained."""
 
     def __init__(self, run_dir: Path):
         self.tensorboard = TensorboardLogger(exp_name="tensorboard", log_dir=str(run_dir))
-        self.csv_path = Path(run_dir) / "metrics.csv"
 
     def log_hparams(self, config: dict[str, Any]) -> None:
         self.tensorboard.log_hparams(flatten_config(config))
 
-    def log(self, metrics: dict[str, float], iteration: int, frames: int, wall_time: float) -> None:
+    def log(self, metrics: dict[str, float], frames: int) -> None:
+        """One iteration's scalars (``train/iteration`` and ``time/wall_time`` among them), written to disk
+        now: a report or a watcher reads every finished iteration, even of a run still going."""
         for key, value in metrics.items():
             if isinstance(value, int | float) and math.isfinite(value):
                 self.tensorboard.log_scalar(key, value, step=frames)
-        row = {"iteration": iteration, "frames": frames, "wall_time": round(wall_time, 3)}
-        row.update({key: metrics.get(key, "") for key in CSV_COLUMNS})
-        new_file = not self.csv_path.exists()
-        with self.csv_path.open("a", newline="") as file:
-            writer = csv.DictWriter(file, fieldnames=list(row))
-            if new_file:
-                writer.writeheader()
-            writer.writerow(row)
+        self.tensorboard.experiment.flush()
 
     def log_image(self, tag: str, image: np.ndarray, frames: int) -> None:
         """An ``(H, W, 3)`` uint8 picture, e.g. the evaluation's trajectories, on the dashboard's Images tab."""

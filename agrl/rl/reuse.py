@@ -121,11 +121,11 @@ class PolicyReuseTransform(Transform):
         env: GuidanceEnv,
         *,
         ppo_targets: Callable[[TensorDictBase, torch.Tensor], TensorDictBase],
-        initial_selection_factor: float = 1.0,
-        selection_decay: float = 0.0,
-        candidate_stride: int = 1,
-        max_candidates: int = 64,
-        keep: str = "earliest",
+        initial_selection_factor: float,  # Algorithm 1's knobs: no defaults here, conf/method/reuse.yaml has them
+        selection_decay: float,
+        candidate_stride: int,
+        max_candidates: int,
+        keep: str,
         max_rows: int | None = None,
         seed: int = 0,
     ):

@@ -11,6 +11,7 @@ paper's evaluation (:mod:`agrl.rl.evaluation`).
 from __future__ import annotations
 
 import copy
+import functools
 import logging
 import sys
 import time
@@ -22,7 +23,7 @@ import torch
 import tqdm
 from omegaconf import OmegaConf
 from tensordict import TensorDictBase
-from torchrl.collectors import Collector
+from torchrl.collectors import Collector, MultiSyncCollector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
 
@@ -63,6 +64,9 @@ __all__ = ["Counters", "Trainer", "TrainingDiverged"]
 
 log = logging.getLogger("agrl.train")
 
+#: Seed offset between collector workers' env streams (ppo.collector_workers > 1): worker w uses seed + w * this.
+WORKER_SEED_STRIDE = 7_919
+
 
 @dataclass
 class Counters:
@@ -99,8 +103,7 @@ class Trainer:
         if resume_payload is not None:
             self._restore(resume_payload)
         self.env.set_initial_state_distribution(start_distribution(self.params, self.counters.curriculum_scale))
-        self.collector = Collector(self.env, self.actor, frames_per_batch=self.frames_per_batch, total_frames=-1,
-                                   device=self.device, auto_register_policy_transforms=False)
+        self.collector = self._make_collector()
         if resume_payload is not None:
             restore_rng_states(self.env, resume_payload["rng"])  # building the collector may run the policy
         self.metrics = MetricsLog(self.run_dir)
@@ -116,6 +119,24 @@ class Trainer:
         periodic = GuidanceEnv(self.params, num_envs=self.cfg.eval.periodic_episodes, device=self.device,
                                seed=self.eval_seed)
         return train, periodic
+
+    def _make_collector(self) -> Collector | MultiSyncCollector:
+        """``ppo.collector_workers=1``: one Collector stepping ``self.env`` here (exact resume carries its rows).
+        N > 1: TorchRL's MultiSyncCollector, N processes of ``num_envs / N`` envs each, their batches
+        concatenated along the env dimension (the same keys, shapes and dtypes); the actor's weights go to the
+        workers before each batch. Config validation keeps N > 1 to runs without curriculum, reuse or resume,
+        which all need ``self.env`` to be the envs that collect."""
+        workers = self.cfg.ppo.collector_workers
+        if workers == 1:
+            return Collector(self.env, self.actor, frames_per_batch=self.frames_per_batch, total_frames=-1,
+                             device=self.device, auto_register_policy_transforms=False)
+        envs_per_worker = self.cfg.ppo.num_envs // workers
+        make_envs = [functools.partial(GuidanceEnv, self.params, num_envs=envs_per_worker, device=self.device,
+                                       seed=self.cfg.seed + WORKER_SEED_STRIDE * worker) for worker in range(workers)]
+        return MultiSyncCollector(make_envs, self.actor, frames_per_batch=self.frames_per_batch, total_frames=-1,
+                                  device=self.device, cat_results=0, update_at_each_batch=True, use_buffers=True,
+                                  num_threads=torch.get_num_threads(),  # this process's threads: the PPO update
+                                  auto_register_policy_transforms=False)
 
     def _load_baseline(self, reference: str):
         """The frozen baseline actor B; pretrained (and reuse from B) also start Z's networks from it."""
@@ -183,7 +204,7 @@ class Trainer:
             "critic": copy.deepcopy(self.critic.state_dict()),
             "optimizer": copy.deepcopy(self.optimizer.state_dict()),
             "counters": vars(self.counters).copy(),
-            "carrier": carried_rows(self.collector),
+            "carrier": carried_rows(self.collector) if isinstance(self.collector, Collector) else None,
             "reuse": self.reuse.state_dict() if self.reuse is not None else None,
             "rng": rng_states(self.env),
             "config": OmegaConf.to_container(config, resolve=True),
@@ -364,7 +385,9 @@ class Trainer:
         return None
 
     def _log(self, metrics: dict[str, float]) -> None:
-        self.metrics.log(metrics, self.counters.iteration, self.counters.frames, self.counters.wall_time)
+        # Every logged step carries its iteration and wall time (the initial evaluation's too): agrl.report's rows.
+        where = {"train/iteration": self.counters.iteration, "time/wall_time": self.counters.wall_time}
+        self.metrics.log({**where, **metrics}, self.counters.frames)
 
     def final_evaluation(self) -> dict[str, Any]:
         """The paper's evaluation (``eval.episodes`` deterministic episodes) -> ``eval/eval.json``."""

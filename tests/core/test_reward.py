@@ -168,7 +168,7 @@ def run_episodes(params: GuidanceParameters, num_envs: int, seed: int):
 )
 def test_shaping_telescopes_over_an_episode(kind, reward):
     destination = DestinationMotion(kind=kind, speed=20.0, radius=1_000.0)
-    params = GuidanceParameters(max_decisions=12, reward=reward, destination=destination)
+    params = GuidanceParameters(max_decisions=12, reward=reward, destination=destination, compile=False)
     num_envs = 4
     start, records = run_episodes(params, num_envs, seed=11)
     gamma = reward.gamma
@@ -212,7 +212,7 @@ EPISODE_START = torch.tensor([-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0])  # 
 def env_rewards(reward_params: RewardParameters, actions: list[int]) -> tuple[list[float], int]:
     """The env's reward at each decision of ``actions`` from EPISODE_START (none ends the episode), and the
     episode's instruction count."""
-    env = GuidanceEnv(GuidanceParameters(reward=reward_params), num_envs=1, seed=0)
+    env = GuidanceEnv(GuidanceParameters(reward=reward_params, compile=False), num_envs=1, seed=0)
     td = env.reset(env.scenario(aircraft_state=EPISODE_START))
     out = []
     for action in actions:

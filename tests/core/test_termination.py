@@ -146,7 +146,7 @@ def step(env, td, action: int):
 
 
 def test_env_out_of_airspace_ends_episode_with_c2_plus_shaping():
-    params = GuidanceParameters()
+    params = GuidanceParameters(compile=False)
     env = GuidanceEnv(params, num_envs=1, seed=0)
     start = [9_800.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0]
     td = env.reset(env.scenario(aircraft_state=torch.tensor(start)))
@@ -161,7 +161,7 @@ def test_env_out_of_airspace_ends_episode_with_c2_plus_shaping():
 
 
 def test_env_budget_exhaustion_gives_c3():
-    params = GuidanceParameters(max_decisions=2)
+    params = GuidanceParameters(max_decisions=2, compile=False)
     env = GuidanceEnv(params, num_envs=1, seed=0)
     start = [-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0]
     td = env.reset(env.scenario(aircraft_state=torch.tensor(start)))
@@ -184,7 +184,7 @@ def test_env_budget_exhaustion_gives_c3():
 
 
 def test_env_airspace_exit_on_last_decision_is_not_budget_exhaustion():
-    env = GuidanceEnv(GuidanceParameters(max_decisions=1), num_envs=2, seed=0)
+    env = GuidanceEnv(GuidanceParameters(max_decisions=1, compile=False), num_envs=2, seed=0)
     start = torch.tensor(
         [[9_800.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0], [-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0]]
     )
@@ -194,7 +194,7 @@ def test_env_airspace_exit_on_last_decision_is_not_budget_exhaustion():
 
 
 def test_env_success_pays_c1():
-    params = GuidanceParameters()
+    params = GuidanceParameters(compile=False)
     env = GuidanceEnv(params, num_envs=1, seed=0)
     # Flying straight at the fixed destination (0, 0, 0, 0) at 100 m altitude: inside d_e within 3 s.
     start = [-1_200.0, 0.0, 100.0, 200.0, 0.0, 0.0, 0.0]

@@ -20,6 +20,7 @@ from agrl.envs.guidance import REWARD_PART_KEYS, STATE_KEYS
 
 def make_params(kind: MotionKind = MotionKind.FIXED, **overrides) -> GuidanceParameters:
     destination = DestinationMotion(kind=kind, speed=20.0, radius=500.0)
+    overrides.setdefault("compile", False)
     return GuidanceParameters(destination=destination, **overrides)
 
 

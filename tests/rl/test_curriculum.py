@@ -20,7 +20,7 @@ def test_promotion_steps_up_only_on_enough_success_and_stops_at_one():
 
 @pytest.mark.parametrize("scale", [0.15, 0.55, 1.0, 1.2])
 def test_start_distribution_is_the_floored_scaled_box_about_the_destination(scale):
-    params = GuidanceParameters(destination=DestinationMotion(start=(1_500.0, -800.0, 0.0, 0.0)))
+    params = GuidanceParameters(destination=DestinationMotion(start=(1_500.0, -800.0, 0.0, 0.0)), compile=False)
     expected = scale_distribution(params.initial_state, min(scale, 1.0), (1_500.0, -800.0, 0.0),
                                   success_distance=params.simulation.tolerance.distance)
     assert start_distribution(params, scale) == expected

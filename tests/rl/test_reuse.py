@@ -48,6 +48,8 @@ FAR = 3_000.0  # m: the hand-built baseline accelerates while its target is fart
 
 STEADY, LEFT, RIGHT, ACCELERATE, DECELERATE, PULL_UP, PUSH_OVER = range(7)
 OWN_KEYS = [key for key in PPO_KEYS if key != "relabelled"]
+#: The transform's knobs unless a test sets one: every episode selected (no decay), every step a candidate.
+ALGORITHM_1 = {"initial_selection_factor": 1.0, "selection_decay": 0.0, "candidate_stride": 1, "keep": "earliest"}
 
 
 # ---------------------------------------------------------------------------- stand-in agents and data
@@ -129,7 +131,7 @@ class Collected:
                                       actor=self.actor)
 
     def transform(self, baseline=None, **kwargs) -> PolicyReuseTransform:
-        kwargs.setdefault("max_candidates", BUDGET)
+        kwargs = {**ALGORITHM_1, "max_candidates": BUDGET, **kwargs}
         return PolicyReuseTransform(baseline if baseline is not None else as_actor(PursuitLogits()), self.env,
                                     ppo_targets=self.ppo_targets, **kwargs)
 
@@ -635,7 +637,7 @@ class Spanning:
         return relabelled_ppo_targets(trajectories, valid, critic=self.critic, advantage=self.replay_gae)
 
     def transform(self, **kwargs) -> PolicyReuseTransform:
-        kwargs.setdefault("max_candidates", BUDGET)
+        kwargs = {**ALGORITHM_1, "max_candidates": BUDGET, **kwargs}
         return PolicyReuseTransform(as_actor(SkittishLogits()), self.env, ppo_targets=self.ppo_targets, **kwargs)
 
     def batch_of(self) -> dict[int, int]:

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import csv
-
 import numpy as np
 import pytest
 import torch
 from tensordict import TensorDictBase
 
+from agrl.report import read_metrics
 from agrl.rl.checkpoint import load_checkpoint
 from agrl.rl.trainer import Trainer, TrainingDiverged
 
@@ -43,11 +42,6 @@ def assert_bitwise_equal(a, b, where: str = "payload") -> None:
         assert np.array_equal(a, b), f"{where} differs"
     else:
         assert a == b, f"{where}: {a!r} != {b!r}"
-
-
-def read_csv(path):
-    with path.open(newline="") as file:
-        return list(csv.DictReader(file))
 
 
 # ---------------------------------------------------------------------------- determinism
@@ -101,8 +95,8 @@ def test_resume_matches_an_uninterrupted_run_bitwise(tmp_path, tiny_run, compose
     # Same logged values, row by row (wall times aside).
     columns = ("iteration", "frames", "train/success_rate", "eval/success_rate",
                "train/instructions_per_episode")
-    rows = [[row[c] for c in columns] for row in read_csv(run / "metrics.csv")]
-    assert rows == [[row[c] for c in columns] for row in read_csv(tiny_run.run_dir / "metrics.csv")]
+    rows = [[row.get(c) for c in columns] for row in read_metrics(run)]
+    assert rows == [[row.get(c) for c in columns] for row in read_metrics(tiny_run.run_dir)]
 
 
 # ---------------------------------------------------------------------------- non-finite loss
@@ -131,7 +125,7 @@ def test_non_finite_loss_stops_training_and_keeps_the_last_good_checkpoint(
     for network in ("actor", "critic"):
         assert all(torch.isfinite(value).all() for value in kept[network].values()), network
         assert_bitwise_equal(kept[network], good[network], network)
-    assert [int(row["iteration"]) for row in read_csv(run / "metrics.csv")] == [1]
+    assert [int(row["iteration"]) for row in read_metrics(run)] == [1]
 
 
 # ---------------------------------------------------------------------------- evaluation schedule

@@ -2,21 +2,16 @@
 
 from __future__ import annotations
 
-import csv
 import logging
 
 import pytest
 
+from agrl.report import read_metrics
 from agrl.rl.trainer import Trainer
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
 
 BUDGET_ITERATIONS = 10
-
-
-def read_csv(path):
-    with path.open(newline="") as file:
-        return list(csv.DictReader(file))
 
 
 def stop_reasons(caplog) -> list[str]:
@@ -32,8 +27,8 @@ def test_target_success_stops_at_the_first_periodic_evaluation_that_reaches_it(t
                                        "eval.periodic_episodes": 32, "target_success": target}), "method=pretrained")
     caplog.set_level(logging.INFO, logger="agrl.train")
     summary = Trainer(config, tmp_path / "run").train()
-    rows = read_csv(tmp_path / "run" / "metrics.csv")
-    evaluations = [float(row["eval/success_rate"]) for row in rows[1:]]  # row 0: before training, never a stop
+    rows = read_metrics(tmp_path / "run")
+    evaluations = [row["eval/success_rate"] for row in rows[1:]]  # row 0: before training, never a stop
     first = next(index for index, success in enumerate(evaluations) if success >= target) + 1
     assert first < BUDGET_ITERATIONS
     assert int(rows[-1]["iteration"]) == summary["iterations"] == first

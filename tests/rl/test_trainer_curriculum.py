@@ -7,12 +7,11 @@ default recipe (``python -m agrl.train``) does.
 
 from __future__ import annotations
 
-import csv
-
 import pytest
 import torch
 from test_trainer import assert_bitwise_equal  # tests/rl is on sys.path (pytest's default import mode)
 
+from agrl.report import read_metrics
 from agrl.rl.checkpoint import load_checkpoint
 from agrl.rl.trainer import Trainer
 
@@ -106,11 +105,6 @@ RESUME_CHANGES = {**CURRICULUM_ON, "curriculum.promotion_success": "0.05", "eval
 ITERATIONS = 4
 
 
-def read_csv(path):
-    with path.open(newline="") as file:
-        return list(csv.DictReader(file))
-
-
 def test_resume_below_scale_1_matches_an_uninterrupted_run_bitwise(tmp_path, compose_train, tiny_args, run_cli):
     straight_dir, run = tmp_path / "straight", tmp_path / "run"
     Trainer(compose_train(*tiny_args({**RESUME_CHANGES, "ppo.total_frames": ITERATIONS * 512})), straight_dir).train()
@@ -132,5 +126,5 @@ def test_resume_below_scale_1_matches_an_uninterrupted_run_bitwise(tmp_path, com
     for key in ("iteration", "frames", "best_success", "curriculum_scale"):
         assert resumed["counters"][key] == straight["counters"][key], key
     columns = ("iteration", "frames", "train/success_rate", "eval/success_rate", "train/instructions_per_episode")
-    rows = [[row[c] for c in columns] for row in read_csv(run / "metrics.csv")]
-    assert rows == [[row[c] for c in columns] for row in read_csv(straight_dir / "metrics.csv")]
+    rows = [[row.get(c) for c in columns] for row in read_metrics(run)]
+    assert rows == [[row.get(c) for c in columns] for row in read_metrics(straight_dir)]
