@@ -6,8 +6,9 @@ epochs, learning rate, gamma, clip, GAE lambda, entropy and value coefficients, 
 sizes from the composed config), one after the other in the same process, and each reports the median
 **seconds of one PPO iteration**, split into collection and update (the epochs of minibatches; GAE is in
 SB3's collection and in agrl's update), from its second iteration on (the first one carries start-up and,
-with ``--compile``, the ``torch.compile`` of the simulation step). Prints one ``ppo_iteration_seconds`` line per trainer and a ``ratio`` line
-(agrl's decisions/s over stable-baselines3's; ``update_ratio`` and ``collection_ratio`` per part).
+with ``--compile``, the ``torch.compile`` of the simulation step). Prints one ``ppo_iteration_seconds``
+line per trainer and a ``ratio`` line (agrl's decisions/s over stable-baselines3's; ``update_ratio`` and
+``collection_ratio`` per part).
 
 stable-baselines3 is the ``bench`` extra (``pip install 'agrl[bench]'``; it leaves torch alone). It
 sees the env through :class:`Sb3VectorEnv`, a thin adapter from
