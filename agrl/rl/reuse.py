@@ -24,7 +24,9 @@ probability ``e`` when it started, re-played with the frozen baseline agent B:
 
 The candidates run in a few waves (the earliest t_n first for ``earliest``), all
 episodes together in each: a time loop per wave, with finished rows dropped as
-they end, and no Python loop over episodes or candidates. Stored tuples carry the
+they end, and no Python loop over episodes or candidates. The loop records each
+row's actions and simulated states; the kept rollouts' transitions are completed
+from that record in one batch (no second simulation). Stored tuples carry the
 real destination fields, so PPO trains the new agent on its own task. The transform never writes into its input.
 
 Actions of relabelled rows come from B, not from the policy being trained, so the
@@ -513,8 +515,8 @@ class PolicyReuseTransform(Transform):
         """Which found episodes to re-play: those whose re-played rows will be inside ``max_rows``.
 
         The output is the kept own rows, then the re-played episodes in order, cut at ``max_rows``.
-        Re-playing an episode whose rows all fall past the cut is wasted work (early in training, when
-        the agent's episodes are short, most of the work), so those are not re-played. Returns the indices
+        Completing an episode whose rows all fall past the cut is wasted work (early in training, when
+        the agent's episodes are short, a large part of it), so those are not completed. Returns the indices
         to re-play and a mask of the found episodes that are dropped (they would have been cut anyway).
         """
         index = found.nonzero().squeeze(-1)
