@@ -8,8 +8,8 @@ replay buffer's ``extend`` does in one training iteration (``time/reuse_seconds`
 
 Every line has ``name``, ``value`` (median seconds over ``--repeats`` calls after one warm-up call)
 and ``unit``, plus the median process CPU seconds (``cpu_seconds``: comparable on a loaded machine with
-``--threads 1``), the rows the relabelling simulated (``simulated_row_decisions``, search and replay: its
-cost, independent of the load), the episodes selected and relabelled and the rows stored. The first line is the
+``--threads 1``), the rows the relabelling simulated (``simulated_row_decisions``, one per row and decision:
+its cost, independent of the load), the episodes selected and relabelled and the rows stored. The first line is the
 machine (see :mod:`agrl.bench`).
 
 Examples::
@@ -86,15 +86,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             rows = trainer.advantage(batch).reshape(-1)
         transform = trainer.reuse
         budget = trainer.params.max_decisions
-        # Count the rows the relabelling simulates (search and replay): its cost, independent of the machine's load.
+        # Count the rows the relabelling simulates: its cost, independent of the machine's load.
         simulated = [0]
-        transition = trainer.env.transition
+        simulator = trainer.env.simulator
 
-        def counting_transition(state, *motion):
-            simulated[0] += state.numel()
-            return transition(state, *motion)
+        def counting_simulator(aircraft_state, *args, **kwargs):
+            simulated[0] += aircraft_state.shape[0]
+            return simulator(aircraft_state, *args, **kwargs)
 
-        trainer.env.transition = counting_transition
+        trainer.env.simulator = counting_simulator
         for candidates in args.candidates:
             transform.candidates = candidate_steps(budget, config.method.candidate_stride, candidates).to(rows.device)
             timings, cpu_timings = [], []

@@ -21,7 +21,7 @@ from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
 from agrl.core.parameters import GuidanceParameters, MotionKind
 from agrl.core.reward import potential, shaping_reward, switch_cost_reward, termination_reward
-from agrl.core.simulation import DecisionSimulator
+from agrl.core.simulation import DecisionResult, DecisionSimulator
 from agrl.core.termination import Outcome
 
 NUM_ACTIONS = len(MANEUVER_NAMES)
@@ -267,10 +267,22 @@ class GuidanceEnv(EnvBase):
         random redraw. The policy-reuse step calls it to re-simulate episodes exactly
         as the environment would. Works for any batch shape of ``state``.
         """
-        action = state["action"].long()
         result = self.simulator(
-            state["aircraft_state"], state["destination_state"], destination_speed, destination_turn_rate, action
+            state["aircraft_state"], state["destination_state"], destination_speed, destination_turn_rate,
+            state["action"].long(),
         )
+        return self.complete_transition(state, result, destination_speed, destination_turn_rate)
+
+    def complete_transition(
+        self, state: TensorDictBase, result: DecisionResult, destination_speed: torch.Tensor,
+        destination_turn_rate: torch.Tensor,
+    ) -> TensorDictBase:
+        """The rest of :meth:`transition` once the simulator's ``result`` for ``state``'s action is known.
+
+        The policy-reuse step records the simulator's results while it searches, then completes the kept
+        episodes' transitions with this in one batch (any batch shape) instead of simulating them again.
+        """
+        action = state["action"].long()
         step_count = state["step_count"] + 1
         outcome = torch.where(
             (result.outcome == Outcome.RUNNING) & (step_count >= self.params.max_decisions),

@@ -24,7 +24,9 @@ probability ``e`` when it started, re-played with the frozen baseline agent B:
 
 The candidates run in a few waves (the earliest t_n first for ``earliest``), all
 episodes together in each: a time loop per wave, with finished rows dropped as
-they end, and no Python loop over episodes or candidates. Stored tuples carry the
+they end, and no Python loop over episodes or candidates. The loop records each
+row's actions and simulated states; the kept rollouts' transitions are completed
+from that record in one batch (no second simulation). Stored tuples carry the
 real destination fields, so PPO trains the new agent on its own task. The transform never writes into its input.
 
 Actions of relabelled rows come from B, not from the policy being trained, so the
@@ -38,14 +40,17 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import NamedTuple
 
 import torch
 from tensordict import TensorDict, TensorDictBase
+from tensordict.nn import TensorDictModule
 from torchrl.envs import ExplorationType, Transform, set_exploration_type
 from torchrl.modules import ProbabilisticActor
 
 from agrl.core.destinations import DestinationState, move_destination
 from agrl.core.observation import policy_observation
+from agrl.core.simulation import DecisionResult
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import STATE_KEYS, GuidanceEnv
 
@@ -133,6 +138,7 @@ class PolicyReuseTransform(Transform):
         if keep not in ("earliest", "latest"):
             raise ValueError(f"keep={keep!r} is not allowed: earliest or latest")
         self.baseline_actor = baseline_actor.eval().requires_grad_(False)
+        self._baseline_logits = _logits_network(self.baseline_actor)
         self.env = env
         self.selection_factor = float(initial_selection_factor)
         self.selection_decay = float(selection_decay)
@@ -216,15 +222,17 @@ class PolicyReuseTransform(Transform):
         dropped = torch.zeros_like(succeeded)
         if episodes:
             trajectory, motion = self._destination_prediction(known, starts, episode_ids)
-            winner_step, winner_index = self._search(known[starts], trajectory, motion)
+            start_rows = known[starts]
+            winner_step, winner_index, record = self._search_recorded(start_rows, trajectory, motion)
             found, dropped = self._fitting(winner_index >= 0, winner_step, traj_ids, episode_ids[starts],
                                            rows.numel())
             succeeded |= dropped  # found, but their rows would fall past max_rows: neither own nor re-played
             if found.numel():
-                relabelled_rows, replayed = self._replay(known[starts[found]], trajectory[found], motion[found],
-                                                         winner_step[found], winner_index[found])
-                # The replay decides (see _replay): an episode whose replay did not succeed keeps its own rows.
-                succeeded[found] = replayed
+                relabelled_rows = self._relabelled_trajectories(
+                    start_rows[found], trajectory[found], motion[found], winner_step[found], winner_index[found],
+                    SearchRecord(*(field[found] for field in record)),
+                )
+                succeeded[found] = True
         replaced_ids = episode_ids[starts[succeeded]]
         keep_own = ~torch.isin(traj_ids, replaced_ids)
         own = rows[keep_own].select(*[key for key in PPO_KEYS if key != "relabelled"])
@@ -348,28 +356,53 @@ class PolicyReuseTransform(Transform):
 
     def _baseline_actions(self, state: TensorDictBase, predicted_destination: torch.Tensor) -> torch.Tensor:
         """B's deterministic action on the state whose destination fields are the prediction (equation 20)."""
-        return self._baseline_query(state, predicted_destination)["action"]
+        return self._baseline_mode(self._predicted_observation(state["aircraft_state"], predicted_destination,
+                                                                state["last_action"]))
 
-    def _baseline_query(self, state: TensorDictBase, predicted_destination: torch.Tensor) -> TensorDictBase:
-        """B's output (``action``: its argmax; ``action_log_prob``: B's log-probability of it)."""
+    def _predicted_observation(
+        self, aircraft_state: torch.Tensor, predicted_destination: torch.Tensor, last_action: torch.Tensor
+    ) -> torch.Tensor:
         simulation = self.env.params.simulation
-        observation = policy_observation(
-            state["aircraft_state"], predicted_destination, state["last_action"], simulation.airspace,
-            simulation.limits,
-        )
-        query = TensorDict({"observation": observation}, batch_size=state.batch_size, device=state.device)
+        return policy_observation(aircraft_state, predicted_destination, last_action, simulation.airspace,
+                                  simulation.limits)
+
+    def _baseline_mode(self, observation: torch.Tensor) -> torch.Tensor:
+        """B's action in deterministic mode: the mode of its distribution (the argmax for a categorical)."""
+        if self._baseline_logits is not None:
+            # What the actor computes in DETERMINISTIC mode (Categorical(logits).mode), without its TensorDict
+            # and distribution wrappers: the search calls this once per time step (tested equal to the actor).
+            logits = self._baseline_logits(observation)
+            return torch.distributions.Categorical(logits=logits, validate_args=False).mode
+        query = TensorDict({"observation": observation}, batch_size=observation.shape[:-1], device=observation.device)
         with set_exploration_type(ExplorationType.DETERMINISTIC):
-            return self.baseline_actor(query)
+            return self.baseline_actor(query)["action"]
+
+    def _baseline_log_prob(self, observation: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
+        """B's log-probability of ``action`` (its own deterministic choice) on ``observation``."""
+        if self._baseline_logits is not None:
+            return torch.distributions.Categorical(logits=self._baseline_logits(observation),
+                                                   validate_args=False).log_prob(action)
+        query = TensorDict({"observation": observation}, batch_size=observation.shape[:-1], device=observation.device)
+        return self.baseline_actor.get_dist(query).log_prob(action)
 
     def _search(
         self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Roll out the (episode, t_n) candidates; return the kept candidate's arrival step and index.
 
-        ``winner_index`` is -1 for episodes where no candidate succeeded. The candidates run in waves
-        (:func:`candidate_waves`), in the order they would be kept (earliest: ascending t_n): an episode
-        with a success in one wave has its kept candidate there, so its later waves are not run. Within a
-        wave all candidates of all pending episodes run in one batch.
+        ``winner_index`` is -1 for episodes where no candidate succeeded (see :meth:`_search_recorded`).
+        """
+        winner_step, winner_index, _ = self._search_recorded(start_rows, trajectory, motion)
+        return winner_step, winner_index
+
+    def _search_recorded(
+        self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, SearchRecord]:
+        """:meth:`_search`, also returning the kept candidate's recorded rollout of each episode.
+
+        The candidates run in waves (:func:`candidate_waves`), in the order they would be kept (earliest:
+        ascending t_n): an episode with a success in one wave has its kept candidate there, so its later
+        waves are not run. Within a wave all candidates of all pending episodes run in one batch.
         """
         device = trajectory.device
         episodes, candidates = trajectory.shape[0], self.candidates.numel()
@@ -378,60 +411,102 @@ class PolicyReuseTransform(Transform):
         sentinel = candidates if self.keep == "earliest" else -1
         best = torch.full((episodes,), sentinel, dtype=torch.long, device=device)
         arrival = torch.zeros(episodes, candidates, dtype=torch.long, device=device)
+        budget = self.env.params.max_decisions
+        aircraft = start_rows["aircraft_state"]
+        record = SearchRecord(
+            action=torch.zeros(episodes, budget, dtype=torch.long, device=device),
+            aircraft_state=aircraft.new_zeros(episodes, budget, aircraft.shape[-1]),
+            destination_state=aircraft.new_zeros(episodes, budget, start_rows["destination_state"].shape[-1]),
+        )
         pending = torch.arange(episodes, device=device)
         for wave in candidate_waves(candidates, self.keep):
             if pending.numel() == 0:
                 break
             wave = wave.to(device)
-            episode = pending.repeat_interleave(wave.numel())
-            candidate = wave.repeat(pending.numel())
-            self._search_wave(start_rows, trajectory, motion, episode, candidate, spacing, best, arrival)
+            self._search_wave(start_rows, trajectory, motion, pending, wave, spacing, best, arrival, record)
             pending = pending[best[pending] == sentinel]
         found = (best >= 0) & (best < candidates)
         winner_index = torch.where(found, best, -1)
         winner_arrival = arrival.gather(1, winner_index.clamp(min=0)[:, None]).squeeze(1)
-        return torch.where(found, winner_arrival, 0), winner_index
+        return torch.where(found, winner_arrival, 0), winner_index, record
 
     def _search_wave(
-        self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor, episode: torch.Tensor,
-        candidate: torch.Tensor, spacing: int, best: torch.Tensor, arrival: torch.Tensor,
+        self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor, pending: torch.Tensor,
+        wave: torch.Tensor, spacing: int, best: torch.Tensor, arrival: torch.Tensor, record: SearchRecord,
     ) -> None:
-        """One time loop over the rows ``(episode, candidate)``; updates ``best`` and ``arrival`` in place."""
+        """One time loop over the rows ``(episode, candidate)`` of the ``pending`` episodes and the ``wave``'s
+        candidates; updates ``best`` and ``arrival`` in place, and copies the rollout of each episode's kept
+        candidate (when this wave holds it) into ``record``.
+
+        The loop works on plain tensors: B's observation and mode, the simulator, the end checks. The rest of
+        the environment's transition (reward, observation of the real destination) is computed afterwards for
+        the kept rollouts only (:meth:`_relabelled_trajectories`).
+        """
+        device = trajectory.device
+        size = wave.numel()
+        episode = pending.repeat_interleave(size)
+        candidate = wave.repeat(pending.numel())
+        budget = self.env.params.max_decisions
         target_step = self.candidates[candidate]
-        limit = (target_step + spacing).clamp(max=self.env.params.max_decisions)
+        limit = (target_step + spacing).clamp(max=budget)
+        steps = int(limit.max())
         predicted = trajectory[episode, target_step]
-        state = _initial_state(start_rows, episode)
+        aircraft = start_rows["aircraft_state"][episode]
+        destination = start_rows["destination_state"][episode]
+        last_action = start_rows["last_action"][episode].long()
+        first_step = start_rows["step_count"][episode]
+        rows = episode.numel()
+        actions = torch.empty(rows, steps, dtype=torch.long, device=device)
+        aircraft_after = aircraft.new_empty(rows, steps, aircraft.shape[-1])
+        destination_after = destination.new_empty(rows, steps, destination.shape[-1])
         reduce = "amin" if self.keep == "earliest" else "amax"
-        alive = torch.arange(episode.numel(), device=episode.device)
-        for step in range(int(limit.max())):
+        alive = torch.arange(rows, device=device)
+        for step in range(steps):
             if alive.numel() == 0:
                 break
-            state["action"] = self._baseline_actions(state, predicted[alive])
+            action = self._baseline_mode(self._predicted_observation(aircraft, predicted[alive], last_action))
             index = episode[alive]
-            state = self._transition(state, motion[index, step, 0], motion[index, step, 1])
-            success = state["outcome"] == Outcome.SUCCESS
+            result = self._simulate(aircraft, destination, motion[index, step, 0], motion[index, step, 1], action)
+            actions[alive, step] = action
+            aircraft_after[alive, step] = result.aircraft_state
+            destination_after[alive, step] = result.destination_state
+            success = result.outcome == Outcome.SUCCESS
             if bool(success.any()):
                 arrival[index[success], candidate[alive][success]] = step + 1
                 best.scatter_reduce_(0, index[success], candidate[alive][success], reduce=reduce)
-            running = (state["outcome"] == Outcome.RUNNING) & (step + 1 < limit[alive])
+            # Still running: not ended by the simulator (success, airspace), the budget, or the candidate's limit.
+            running = ((result.outcome == Outcome.RUNNING) & (step + 1 < limit[alive])
+                       & (first_step[alive] + step + 1 < budget))
             # A candidate on the far side of an episode's kept success can no longer be the one kept.
             if self.keep == "earliest":
                 running &= candidate[alive] < best[index]
             else:
                 running &= candidate[alive] > best[index]
             alive = alive[running]
-            state = state[running].exclude("reward", "done", "terminated", "outcome")
+            aircraft, destination = result.aircraft_state[running], result.destination_state[running]
+            last_action = action[running]
+        # Episodes whose kept candidate is in this wave (they had none before it): keep that row's rollout.
+        decided = (best[pending] >= wave.min()) & (best[pending] <= wave.max())
+        position = torch.full((int(self.candidates.numel()),), -1, dtype=torch.long, device=device)
+        position[wave] = torch.arange(size, device=device)
+        kept_episode = pending[decided]
+        kept_row = decided.nonzero().squeeze(-1) * size + position[best[kept_episode]]
+        record.action[kept_episode, :steps] = actions[kept_row]
+        record.aircraft_state[kept_episode, :steps] = aircraft_after[kept_row]
+        record.destination_state[kept_episode, :steps] = destination_after[kept_row]
 
-    def _transition(
-        self, state: TensorDictBase, destination_speed: torch.Tensor, destination_turn_rate: torch.Tensor
-    ) -> TensorDictBase:
-        """``env.transition``, with a single row doubled: a batch of one would make the fused simulator
-        recompile (torch.compile specialises sizes 0 and 1), a 10-20 s stall in the middle of training."""
-        if state.numel() != 1:
-            return self.env.transition(state, destination_speed, destination_turn_rate)
-        doubled = self.env.transition(torch.cat([state, state]), destination_speed.repeat(2),
-                                      destination_turn_rate.repeat(2))
-        return doubled[:1]
+    def _simulate(
+        self, aircraft: torch.Tensor, destination: torch.Tensor, destination_speed: torch.Tensor,
+        destination_turn_rate: torch.Tensor, action: torch.Tensor,
+    ) -> DecisionResult:
+        """The environment's simulator (as in ``env.transition``), with a single row doubled: a batch of one
+        would make the fused simulator recompile (torch.compile specialises sizes 0 and 1), a 10-20 s stall in
+        the middle of training."""
+        if action.numel() != 1:
+            return self.env.simulator(aircraft, destination, destination_speed, destination_turn_rate, action)
+        doubled = self.env.simulator(aircraft.repeat(2, 1), destination.repeat(2, 1), destination_speed.repeat(2),
+                                     destination_turn_rate.repeat(2), action.repeat(2))
+        return DecisionResult(*(field[:1] for field in doubled))
 
     def _fitting(
         self, found: torch.Tensor, arrival: torch.Tensor, traj_ids: torch.Tensor, episode_ids: torch.Tensor,
@@ -440,8 +515,8 @@ class PolicyReuseTransform(Transform):
         """Which found episodes to re-play: those whose re-played rows will be inside ``max_rows``.
 
         The output is the kept own rows, then the re-played episodes in order, cut at ``max_rows``.
-        Re-playing an episode whose rows all fall past the cut is wasted work (early in training, when
-        the agent's episodes are short, most of the work), so those are not re-played. Returns the indices
+        Completing an episode whose rows all fall past the cut is wasted work (early in training, when
+        the agent's episodes are short, a large part of it), so those are not completed. Returns the indices
         to re-play and a mask of the found episodes that are dropped (they would have been cut anyway).
         """
         index = found.nonzero().squeeze(-1)
@@ -455,63 +530,102 @@ class PolicyReuseTransform(Transform):
         dropped[index[~fits]] = True
         return index[fits], dropped
 
-    def _replay(
-        self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor,
-        arrival: torch.Tensor, winner_index: torch.Tensor,
-    ) -> tuple[TensorDictBase | None, torch.Tensor]:
-        """Re-play the kept candidates, recording full transitions.
+    def _relabelled_trajectories(
+        self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor, arrival: torch.Tensor,
+        winner_index: torch.Tensor, record: SearchRecord,
+    ) -> TensorDictBase:
+        """The kept candidates' episodes as full transitions, from the search's record; flat PPO rows.
 
-        Returns the flat PPO rows of the re-played episodes that succeeded and a mask of which did. The search
-        ran B on differently sized batches, so a near-tie between two logits could in principle flip an argmax
-        here; the replay therefore cuts each episode at its own first terminal step and keeps only successes.
+        The search recorded, per step, B's action and the simulator's result; the rest of the environment's
+        transition (``env.complete_transition``: step count, done flags, equation-5 reward, observation of the
+        real destination) is computed here for all kept episodes and steps in one batch ``(episodes, steps)``,
+        then PPO's targets. Every recorded rollout ends at its success (step ``arrival - 1``).
         """
-        episodes = start_rows.numel()
         device = trajectory.device
-        rows_index = torch.arange(episodes, device=device)
-        predicted = trajectory[rows_index, self.candidates[winner_index]]
-        state = _initial_state(start_rows, rows_index)
-        state["observation"] = self.env.observe(state)
+        episodes = start_rows.numel()
         length = int(arrival.max())
-        # Each episode's terminal step and outcome; finished episodes leave the batch (as in the search), and their
-        # transitions are written into a table preallocated from the first step.
-        last_step = torch.full((episodes,), length - 1, dtype=torch.long, device=device)
-        outcome = torch.full((episodes,), int(Outcome.RUNNING), dtype=torch.long, device=device)
-        alive = rows_index
-        trajectories = None
-        for step in range(length):
-            query = self._baseline_query(state, predicted[alive])
-            state["action"] = query["action"]
-            state["baseline_log_prob"] = query["action_log_prob"]
-            next_state = self._transition(state, motion[alive, step, 0], motion[alive, step, 1])
-            record = state.set("next", next_state)
-            if trajectories is None:
-                trajectories = record.unsqueeze(1).expand(episodes, length).clone()
-            else:
-                trajectories[alive, step] = record
-            ended = next_state["done"].squeeze(-1)
-            if bool(ended.any()):
-                last_step[alive[ended]] = step
-                outcome[alive[ended]] = next_state["outcome"][ended].long()
-            alive = alive[~ended]
-            if alive.numel() == 0:
-                break
-            state = next_state[~ended].exclude("reward", "done", "terminated", "outcome")
-        replayed = outcome == Outcome.SUCCESS
-        if bool(replayed.any()):
-            # Steps after the last successful episode's end are padding for every episode: cut them.
-            length = int(last_step[replayed].max()) + 1
-            trajectories = trajectories[:, :length]
-        valid = (torch.arange(length, device=device)[None, :] <= last_step[:, None]) & replayed[:, None]
+        steps = torch.arange(length, device=device)
+        valid = steps[None, :] < arrival[:, None]
+        # Padding (after an episode's end) repeats the episode's last transition: finite values, masked below.
+        take = torch.minimum(steps[None, :], (arrival - 1)[:, None])
+        row = torch.arange(episodes, device=device)[:, None]
+
+        def with_start(start: torch.Tensor, after: torch.Tensor) -> torch.Tensor:
+            """Index n: the value before step n (index 0: at S_0); n + 1: after it."""
+            return torch.cat([start[:, None], after[:, :length]], 1)
+
+        aircraft = with_start(start_rows["aircraft_state"], record.aircraft_state)
+        destination = with_start(start_rows["destination_state"], record.destination_state)
+        speed = with_start(start_rows["destination_speed"], motion[..., 0])
+        turn_rate = with_start(start_rows["destination_turn_rate"], motion[..., 1])
+        # Actions shifted twice: the action before last, the last action, then the action of each step.
+        actions = torch.cat([start_rows["action_before_last"].long()[:, None],
+                             with_start(start_rows["last_action"].long(), record.action)], 1)
+        last_action, action = actions[row, take + 1], actions[row, take + 2]
+        changes = (action != last_action).long()
+        instructions = start_rows["instruction_count"][:, None] + torch.cumsum(changes, 1) - changes
+        state = TensorDict(
+            {
+                "aircraft_state": aircraft[row, take],
+                "destination_state": destination[row, take],
+                "destination_speed": speed[row, take],
+                "destination_turn_rate": turn_rate[row, take],
+                "last_action": last_action.to(start_rows["last_action"].dtype),
+                "action_before_last": actions[row, take].to(start_rows["action_before_last"].dtype),
+                "step_count": start_rows["step_count"][:, None] + take,
+                "episode_return": start_rows["episode_return"][:, None].expand(-1, length),  # set below
+                "instruction_count": instructions[row, take],
+                "action": action,
+            },
+            batch_size=[episodes, length], device=device,
+        )
+        outcome = torch.where(take == (arrival - 1)[:, None], int(Outcome.SUCCESS), int(Outcome.RUNNING))
+        result = DecisionResult(aircraft[row, take + 1], destination[row, take + 1], outcome)
+        next_state = self.env.complete_transition(state, result, speed[row, take + 1], turn_rate[row, take + 1])
+        # The return accumulates step by step, in the environment's order of float additions.
+        reward = next_state["reward"].squeeze(-1)
+        returns = [start_rows["episode_return"]]
+        for step in range(length - 1):
+            returns.append(returns[-1] + reward[:, step])
+        state["episode_return"] = torch.stack(returns, 1)[row, take]
+        next_state["episode_return"] = state["episode_return"] + reward
+        state["observation"] = self.env.observe(state)
+        # B's log-probability of its action on the observation it acted on (the destination predicted at t_n).
+        predicted = trajectory[row.squeeze(1), self.candidates[winner_index]][:, None].expand(-1, length, -1)
+        log_prob = torch.zeros(episodes, length, device=device)
+        log_prob[valid] = self._baseline_log_prob(
+            self._predicted_observation(state["aircraft_state"][valid], predicted[valid], state["last_action"][valid]),
+            action[valid],
+        )
+        state["baseline_log_prob"] = log_prob
+        trajectories = state.set("next", next_state)
         # Rows past an episode's end are padding: mark them terminal so GAE does not mix them in.
         trajectories["next", "done"] = trajectories["next", "done"] | ~valid[..., None]
         trajectories["next", "terminated"] = trajectories["next", "terminated"] | ~valid[..., None]
         trajectories = self.ppo_targets(trajectories, valid)
         flat = trajectories[valid]
         flat["relabelled"] = torch.ones(flat.batch_size, dtype=torch.bool, device=device)
-        return flat.select(*PPO_KEYS), replayed
+        return flat.select(*PPO_KEYS)
 
 
-def _initial_state(start_rows: TensorDictBase, index: torch.Tensor) -> TensorDictBase:
-    """Episode-start states (the paper's S_0) for the rows ``index`` of ``start_rows``, as env state entries."""
-    state = start_rows.select(*STATE_KEYS)[index].clone()
-    return state
+class SearchRecord(NamedTuple):
+    """Each episode's kept rollout as the search ran it, per step ``(episodes, max_decisions, ...)``: B's action
+    and the simulator's result (the aircraft and destination states after the step)."""
+
+    action: torch.Tensor
+    aircraft_state: torch.Tensor
+    destination_state: torch.Tensor
+
+
+def _logits_network(actor: torch.nn.Module) -> torch.nn.Module | None:
+    """The ``observation -> logits`` network of a categorical actor (as :func:`agrl.rl.models.make_actor` builds
+    it: a logits module, then a ``Categorical`` on them), or None for any other actor (queried as a whole)."""
+    if not isinstance(actor, ProbabilisticActor) or len(actor.module) != 2:
+        return None
+    logits, distribution = actor.module
+    if (isinstance(logits, TensorDictModule) and list(logits.in_keys) == ["observation"]
+            and list(logits.out_keys) == ["logits"] and list(distribution.in_keys) == ["logits"]
+            and distribution.distribution_class is torch.distributions.Categorical
+            and not distribution.distribution_kwargs):
+        return logits.module
+    return None

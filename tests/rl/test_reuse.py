@@ -31,7 +31,7 @@ from torchrl.objectives.value import GAE
 
 from agrl.core.destinations import DestinationState, move_destination
 from agrl.core.initial_states import InitialStateDistribution
-from agrl.core.observation import policy_observation
+from agrl.core.observation import OBSERVATION_SIZE, policy_observation
 from agrl.core.parameters import DestinationMotion
 from agrl.core.reward import potential, step_reward
 from agrl.core.termination import Outcome
@@ -308,6 +308,37 @@ def test_baseline_acts_by_its_mode_on_the_predicted_destination(uniform):
     with set_exploration_type(ExplorationType.RANDOM):  # whatever the caller's setting
         for _ in range(3):
             assert torch.equal(transform._baseline_actions(flat, predicted), logits.argmax(-1))
+
+
+class TiedLogits(torch.nn.Module):
+    """Logits with exact ties between two maneuvers: the mode must break them as the actor does."""
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        logits = torch.zeros(*observation.shape[:-1], 7)
+        logits[..., LEFT] = logits[..., RIGHT] = torch.where(observation[..., 0] > 0, 3.0, -3.0)
+        return logits
+
+
+@pytest.mark.parametrize("network", ["mlp", "tied"])
+def test_direct_logits_query_equals_the_actor_in_deterministic_mode(uniform, network):
+    """The search calls B's logits network directly (no TensorDict, no distribution module); its actions and
+    log-probabilities are the ones B's TorchRL actor gives in deterministic mode, bitwise."""
+    torch.manual_seed(3)
+    if network == "mlp":
+        baseline = make_actor([16], "tanh")
+        with torch.no_grad():
+            baseline.module[0].module[-1].weight.mul_(300.0)  # confident and varied, as a trained B
+    else:
+        baseline = as_actor(TiedLogits())
+    transform = uniform.transform(baseline)
+    assert transform._baseline_logits is not None, "the actor's logits network is found"
+    observation = torch.randn(4_096, OBSERVATION_SIZE)
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        expected = baseline(TensorDict({"observation": observation}, [observation.shape[0]]))
+    assert expected["action"].unique().numel() > 1
+    with set_exploration_type(ExplorationType.RANDOM):  # whatever the caller's setting
+        assert torch.equal(transform._baseline_mode(observation), expected["action"])
+    assert torch.equal(transform._baseline_log_prob(observation, expected["action"]), expected["action_log_prob"])
 
 
 def test_success_ends_each_relabelled_episode_and_gae_does_not_look_past_it(relabelled):
