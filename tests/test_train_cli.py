@@ -102,6 +102,7 @@ def test_tiny_run_tensorboard_scalars(tiny_run):
     tags = set(events.Tags()["scalars"])
     for tag in ("train/success_rate", "loss/clip_fraction", "time/decisions_per_second", "eval/success_rate"):
         assert tag in tags, f"{tag} missing from {sorted(tags)}"
+    assert "loss/clip_fraction_relabelled" not in tags  # a scratch run has no relabelled rows to measure
     steps = [event.step for event in events.Scalars("time/decisions_per_second")]
     assert steps == [512 * i for i in range(1, tiny_run.iterations + 1)]
     assert [event.step for event in events.Scalars("eval/success_rate")] == [0, 1024, 2048]

@@ -335,14 +335,14 @@ class Trainer:
                 self.counters.wall_time = wall_offset + time.perf_counter() - start
                 iteration_time = time.perf_counter() - iteration_start
                 metrics = {**episode_statistics(data), **{f"loss/{k}": v for k, v in losses.items()},
-                           **clip_fraction_by_source(self.actor, self.buffer[:], cfg.ppo.clip_epsilon),
                            "train/learning_rate": learning_rate, "train/iteration": self.counters.iteration,
                            "time/decisions_per_second": data.numel() / iteration_time,
                            "time/collection_decisions_per_second": data.numel() / max(collect_time, 1e-9),
                            "time/iteration_seconds": iteration_time, "time/wall_time": self.counters.wall_time}
                 self._advance_curriculum(metrics)
-                if self.reuse is not None:
-                    metrics.update(self.reuse.last_statistics(), **{"time/reuse_seconds": relabel_time})
+                if self.reuse is not None:  # only reuse has relabelled rows: no full-buffer read otherwise
+                    metrics.update(self.reuse.last_statistics(), **{"time/reuse_seconds": relabel_time},
+                                   **clip_fraction_by_source(self.actor, self.buffer[:], cfg.ppo.clip_epsilon))
                 if self._evaluation_due():
                     metrics.update(self._periodic_evaluation())
                 self._snapshot = self._state()

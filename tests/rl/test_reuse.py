@@ -835,6 +835,9 @@ def test_reuse_training_runs_end_to_end(run_cli, tiny_args, tmp_path, steady_bas
     assert {"train/e", "train/reuse_fraction"} <= set(values), sorted(values)
     assert 0 < values["train/reuse_fraction"][-1] <= 1, "the steady baseline arrives: rows are relabelled"
     assert 0 < values["train/e"][-1] < 1, "e dropped by k per selected episode"
+    # PPO's clip fraction per source of rows: relabelled rows exist, Z's own rows only if not all were relabelled
+    assert all(0 <= value <= 1 for value in values["loss/clip_fraction_relabelled"]), sorted(values)
+    assert ("loss/clip_fraction_own" in values) == (min(values["train/reuse_fraction"]) < 1), sorted(values)
     summary = json.loads((run_dir / "eval" / "eval.json").read_text())
     assert summary["method"] == "reuse" and summary["task"] == "uniform"
 
