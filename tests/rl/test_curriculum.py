@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 
 from agrl.core.initial_states import scale_distribution
-from agrl.core.parameters import DestinationMotion, GuidanceParameters
 from agrl.rl.curriculum import promoted_scale, start_distribution
 
 
@@ -19,8 +20,9 @@ def test_promotion_steps_up_only_on_enough_success_and_stops_at_one():
 
 
 @pytest.mark.parametrize("scale", [0.15, 0.55, 1.0, 1.2])
-def test_start_distribution_is_the_floored_scaled_box_about_the_destination(scale):
-    params = GuidanceParameters(destination=DestinationMotion(start=(1_500.0, -800.0, 0.0, 0.0)), compile=False)
+def test_start_distribution_is_the_floored_scaled_box_about_the_destination(scale, paper_parameters):
+    destination = dataclasses.replace(paper_parameters.destination, start=(1_500.0, -800.0, 0.0, 0.0))
+    params = dataclasses.replace(paper_parameters, destination=destination)
     expected = scale_distribution(params.initial_state, min(scale, 1.0), (1_500.0, -800.0, 0.0),
                                   success_distance=params.simulation.tolerance.distance)
     assert start_distribution(params, scale) == expected
