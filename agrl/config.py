@@ -349,10 +349,6 @@ class TrainConfig:
         workers = self.ppo.collector_workers
         _require(workers == 1 or not self.resume, "ppo.collector_workers", workers,
                  "1 with resume (exact resume needs the single in-process collector's carried rows)")
-        curriculum = self.curriculum.enabled and self.method.use_curriculum
-        _require(workers == 1 or not curriculum, "ppo.collector_workers", workers,
-                 "1 while the start-box curriculum is on (its box lives in this process's env; "
-                 "set curriculum.enabled=false)")
         _require(workers == 1 or self.method.name != "reuse", "ppo.collector_workers", workers,
                  "1 with method=reuse (the reuse transform carries episodes of the single collector's envs)")
 

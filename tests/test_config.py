@@ -306,8 +306,7 @@ def test_a_task_value_its_task_needs_is_required():
 def test_collector_workers_must_divide_the_envs():
     with pytest.raises(ConfigError, match=r"^ppo.collector_workers=3 is not allowed: a divisor of ppo.num_envs=512"):
         load("ppo.collector_workers=3", "curriculum.enabled=false")
-    with pytest.raises(ConfigError, match=r"^ppo.collector_workers=2 is not allowed: 1 while the start-box curric"):
-        load("ppo.collector_workers=2")
     with pytest.raises(ConfigError, match=r"^ppo.collector_workers=2 is not allowed: 1 with method=reuse"):
         load("ppo.collector_workers=2", "method=reuse")
     assert load("ppo.collector_workers=2", "curriculum.enabled=false").ppo.collector_workers == 2
+    assert load("ppo.collector_workers=2").curriculum.enabled  # the workers' envs follow the curriculum too
