@@ -305,8 +305,10 @@ def test_a_task_value_its_task_needs_is_required():
 
 def test_collector_workers_must_divide_the_envs():
     with pytest.raises(ConfigError, match=r"^ppo.collector_workers=3 is not allowed: a divisor of ppo.num_envs=512"):
-        load("ppo.collector_workers=3", "curriculum.enabled=false")
+        load("ppo.collector_workers=3")
     with pytest.raises(ConfigError, match=r"^ppo.collector_workers=2 is not allowed: 1 with method=reuse"):
         load("ppo.collector_workers=2", "method=reuse")
+    with pytest.raises(ConfigError, match=r"^ppo.collector_workers=2 is not allowed: 1 with resume \(exact resume"):
+        load("ppo.collector_workers=2", "resume=runs/some_run")
     assert load("ppo.collector_workers=2", "curriculum.enabled=false").ppo.collector_workers == 2
     assert load("ppo.collector_workers=2").curriculum.enabled  # the workers' envs follow the curriculum too
