@@ -51,7 +51,7 @@ from collections.abc import Callable, Sequence
 
 import torch
 
-from agrl.core.initial_states import InitialStateDistribution, sample_initial_aircraft
+from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.parameters import GuidanceParameters
 from agrl.core.simulation import DecisionSimulator
 from agrl.envs.gym import guidance_parameters
@@ -110,7 +110,7 @@ def _inputs(params: GuidanceParameters, batch: int, device: torch.device, seed: 
     """Start states of the benchmark task (the training distribution) and random actions."""
     generator = torch.Generator().manual_seed(seed)
     destination = torch.tensor(params.destination.start).expand(batch, 4).clone()
-    aircraft = sample_initial_aircraft(batch, InitialStateDistribution(), destination, generator)
+    aircraft = sample_initial_aircraft(batch, params.initial_state, destination, generator)
     speed, turn_rate = params.destination.initial_motion(batch, generator, torch.device("cpu"))
     action = torch.randint(0, 7, (batch,), generator=generator)
     return tuple(tensor.to(device) for tensor in (aircraft, destination, speed, turn_rate, action))

@@ -349,10 +349,6 @@ class TrainConfig:
         workers = self.ppo.collector_workers
         _require(workers == 1 or not self.resume, "ppo.collector_workers", workers,
                  "1 with resume (exact resume needs the single in-process collector's carried rows)")
-        curriculum = self.curriculum.enabled and self.method.use_curriculum
-        _require(workers == 1 or not curriculum, "ppo.collector_workers", workers,
-                 "1 while the start-box curriculum is on (its box lives in this process's env; "
-                 "set curriculum.enabled=false)")
         _require(workers == 1 or self.method.name != "reuse", "ppo.collector_workers", workers,
                  "1 with method=reuse (the reuse transform carries episodes of the single collector's envs)")
 
@@ -464,7 +460,8 @@ def _record_values(section: Any) -> dict[str, Any]:
 
 def _build_record(record_type: type, values: dict[str, Any]) -> Any:
     """A frozen record from ``{dotted path: value}``: nested records (and dicts) are built the same way, lists
-    become tuples, and fields no value names keep the record's own default."""
+    become tuples, and fields no value names keep the record's own default (only the constants ``conf/`` does
+    not hold, and the None of a destination field the task does not use; ``tests/test_config.py``)."""
     hints = typing.get_type_hints(record_type)
     names = {spec.name for spec in fields(record_type)}
     unknown = sorted({path.partition(".")[0] for path in values} - names)
@@ -491,3 +488,12 @@ def to_guidance_parameters(task: TaskConfig, reward: RewardConfig, simulation: S
     if compile is not None:
         values["compile"] = compile
     return _build_record(GuidanceParameters, values)
+
+
+def guidance_parameters(*overrides: str, compile: bool = False) -> GuidanceParameters:
+    """The records ``python -m agrl.train <overrides>`` would build, from ``conf/`` (the one source of every
+    value): ``guidance_parameters("task=uniform", "speed=20", "reward=both")``. ``compile`` fuses the 20 ms
+    step with torch.compile (training's choice, ``simulation.compile``); off here for one-off and test use.
+    Raises :class:`ConfigError` (one line) on a bad value."""
+    config = load_config(compose_config(*overrides))
+    return to_guidance_parameters(config.task, config.reward, config.simulation, compile=compile)

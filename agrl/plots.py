@@ -62,11 +62,10 @@ def _outcome_legend(axes) -> None:
     axes.legend(handles=handles, loc="upper left", fontsize=8)
 
 
-def trajectory_figure(records, airspace: Airspace | None = None, count: int = 10, title: str = ""):
+def trajectory_figure(records, airspace: Airspace, count: int = 10, title: str = ""):
     """The figure of :func:`plot_trajectories` (a matplotlib ``Figure``; close it with ``plt.close``)."""
     if records.trajectory_aircraft is None:
         raise ValueError("records carry no trajectories: run_episodes(..., record_trajectories=True)")
-    airspace = airspace or Airspace()
     figure = plt.figure(figsize=(8, 6.5))
     axes = figure.add_subplot(projection="3d")
     count = min(count, records.outcome.numel())
@@ -80,7 +79,7 @@ def trajectory_figure(records, airspace: Airspace | None = None, count: int = 10
     return figure
 
 
-def plot_trajectories(records, path: str | Path, airspace: Airspace | None = None, count: int = 10,
+def plot_trajectories(records, path: str | Path, airspace: Airspace, count: int = 10,
                       title: str = "") -> Path:
     """Aircraft paths (coloured by outcome) and destination paths (black) of the first ``count`` episodes, in km."""
     figure = trajectory_figure(records, airspace, count, title)
@@ -101,7 +100,7 @@ def figure_to_array(figure, close: bool = True) -> np.ndarray:
     return image
 
 
-def trajectory_image(records, airspace: Airspace | None = None, count: int = 10, title: str = "") -> np.ndarray:
+def trajectory_image(records, airspace: Airspace, count: int = 10, title: str = "") -> np.ndarray:
     """:func:`plot_trajectories`' figure as an ``(H, W, 3)`` uint8 array (no file written)."""
     return figure_to_array(trajectory_figure(records, airspace, count, title))
 

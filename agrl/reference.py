@@ -66,12 +66,13 @@ def reference_decision(
     destination_speed: float,
     destination_turn_rate: float,
     action: int,
-    params: SimulationParameters | None = None,
-    maneuvers: ManeuverLoadFactors | None = None,
+    params: SimulationParameters,
+    maneuvers: ManeuverLoadFactors,
 ) -> ReferenceResult:
-    """Advance one aircraft and its destination by one decision (``params.substeps`` integration steps)."""
-    params = params if params is not None else SimulationParameters()
-    maneuvers = maneuvers if maneuvers is not None else ManeuverLoadFactors()
+    """Advance one aircraft and its destination by one decision (``params.substeps`` integration steps).
+
+    ``params`` and ``maneuvers`` are a :class:`agrl.core.parameters.GuidanceParameters`' ``simulation`` and
+    ``maneuvers`` (built from ``conf/``, e.g. by :func:`agrl.config.guidance_parameters`)."""
     axial_excess, normal_command, turn_direction = maneuver_rows(maneuvers)[action]
     dt, gravity, limits = params.integration_step, params.gravity, params.limits
     space, tolerance = params.airspace, params.tolerance

@@ -6,6 +6,10 @@
 * ``compose_train`` composes ``conf/`` in-process and validates it (``agrl.config.load_config``).
 * ``run_cli`` runs ``python -m agrl.<module>`` in a subprocess (one torch thread, see below).
 * ``tiny_run`` is one real ``python -m agrl.train`` run of 4 iterations, shared by the whole session.
+* ``paper_parameters`` is the :class:`GuidanceParameters` of ``task=fixed reward=both`` composed from ``conf/`` (the
+  one source of every value; the records have no defaults): the paper's Table 1/2 values and this project's
+  choices, eager. A test that needs another value uses ``dataclasses.replace`` on it; ``compose_parameters``
+  composes other tasks (``compose_parameters("task=irregular", "reward=both")``).
 
 Torch runs with one intra-op thread here (``OMP_NUM_THREADS=1`` for subprocesses, ``torch_one_thread`` in
 process): with tensors this small, two OpenMP threads on a busy 2-core machine spin and wait, and a tiny run
@@ -76,6 +80,22 @@ def compose_train():
             return load_config(compose(config_name="config", overrides=list(overrides)))
 
     return compose_and_load
+
+
+@pytest.fixture(scope="session")
+def compose_parameters():
+    """``compose_parameters(*overrides)`` -> eager ``GuidanceParameters`` composed from ``conf/`` (cached)."""
+    import functools
+
+    from agrl.config import guidance_parameters
+
+    return functools.lru_cache(maxsize=None)(guidance_parameters)
+
+
+@pytest.fixture(scope="session")
+def paper_parameters(compose_parameters):
+    """``GuidanceParameters`` of the fixed task with the paper's reward (both shaping terms, no switch cost)."""
+    return compose_parameters("task=fixed", "reward=both")
 
 
 @pytest.fixture(scope="session")

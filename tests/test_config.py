@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import typing
 from pathlib import Path
 
 import pytest
@@ -30,6 +31,8 @@ from agrl.config import (
     task_label,
     to_guidance_parameters,
 )
+from agrl.core.aircraft import GRAVITY
+from agrl.core.parameters import DESTINATION_START, MOTION_FIELDS, DestinationMotion
 from agrl.envs import GuidanceParameters, MotionKind
 
 CONFIG_DIR = str((Path(__file__).resolve().parent.parent / "conf").resolve())
@@ -222,16 +225,17 @@ def test_every_task_value_comes_from_conf():
                    "simulation.initial_state.min_horizontal_distance=2500", "simulation.compile=false")
     irregular = load("task=irregular", "task.change_probability=0.3", "task.speed_range=[5,40]",
                      "task.max_turn_rate_deg=2.0")
+    plain_irregular = load("task=irregular")
     first, second = (dict(_leaves(to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation)))
                      for cfg in (base, changed))
     same = {path for path in first if first[path] == second[path]}
     # The irregular task's three values are unused by a curved destination: compare them on the irregular task.
     unused_by_curved = {"destination.change_probability", "destination.speed_range", "destination.max_turn_rate"}
     assert same == {"simulation.gravity", "destination.start", "destination.kind"} | unused_by_curved
-    destination = to_guidance_parameters(irregular.task, irregular.reward, irregular.simulation).destination
-    defaults = to_guidance_parameters(base.task, base.reward, base.simulation).destination  # record defaults
+    destination, plain = (to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation).destination
+                          for cfg in (irregular, plain_irregular))
     for name in ("change_probability", "speed_range", "max_turn_rate"):
-        assert getattr(destination, name) != getattr(defaults, name), name
+        assert None is not getattr(destination, name) != getattr(plain, name) is not None, name
 
 
 def test_records_convert_units_and_types():
@@ -246,10 +250,65 @@ def test_records_convert_units_and_types():
     assert params.reward.success == cfg.reward.c1 and params.reward.altitude_weight == cfg.reward.c8
 
 
-def test_core_record_defaults_agree_with_conf():
-    """The core records keep defaults for direct (torch-only) use; they must be conf's paper values."""
-    cfg = load("reward=both")
-    assert to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation) == GuidanceParameters(compile=True)
+#: The only record fields with a default, because conf/ holds no value for them.
+ALLOWED_DEFAULTS = {
+    ("SimulationParameters", "gravity"): GRAVITY,  # a physical constant, not a choice
+    ("DestinationMotion", "start"): DESTINATION_START,  # the paper's Table 1, the same for every task
+    # A destination field that only some kinds read is None for the others (DestinationMotion checks its own).
+    **{("DestinationMotion", name): None for names in MOTION_FIELDS.values() for name in names},
+}
+
+
+def _record_types(record_type: type) -> list[type]:
+    """``record_type`` and every record nested in it."""
+    hints = typing.get_type_hints(record_type)
+    nested = [hints[spec.name] for spec in dataclasses.fields(record_type)
+              if dataclasses.is_dataclass(hints[spec.name])]
+    return [record_type] + [inner for record in nested for inner in _record_types(record)]
+
+
+def record_defaults(record_type: type) -> dict[tuple[str, str], object]:
+    """``{(record name, field name): default}`` of every field of ``record_type`` (nested) that has one."""
+    defaults = {}
+    for record in _record_types(record_type):
+        for spec in dataclasses.fields(record):
+            if spec.default is not dataclasses.MISSING:
+                defaults[record.__name__, spec.name] = spec.default
+            elif spec.default_factory is not dataclasses.MISSING:
+                defaults[record.__name__, spec.name] = spec.default_factory()
+    return defaults
+
+
+def test_the_records_hold_no_values_but_the_named_constants():
+    """conf/ is the one source of each value: the env's records have no defaults of their own."""
+    names = {record.__name__ for record in _record_types(GuidanceParameters)}
+    assert names == {"GuidanceParameters", "SimulationParameters", "Airspace", "SuccessTolerance", "AircraftLimits",
+                     "ManeuverLoadFactors", "RewardParameters", "InitialStateDistribution", "DestinationMotion"}
+    assert record_defaults(GuidanceParameters) == ALLOWED_DEFAULTS
+
+
+@dataclasses.dataclass(frozen=True)
+class DefaultedInner:
+    value: float = 1.5
+
+
+@dataclasses.dataclass(frozen=True)
+class DefaultedOuter:
+    inner: DefaultedInner
+    required: float
+    count: int = dataclasses.field(default_factory=lambda: 3)
+
+
+def test_a_record_default_is_found():
+    """The check above can fail: a default (or default factory) on a nested record is reported."""
+    assert record_defaults(DefaultedOuter) == {("DefaultedOuter", "count"): 3, ("DefaultedInner", "value"): 1.5}
+
+
+def test_a_destination_needs_the_fields_its_kind_reads():
+    with pytest.raises(ValueError, match=r"^DestinationMotion radius=None is not allowed: kind=curved needs speed, "
+                                         r"radius, turn_direction$"):
+        DestinationMotion(kind=MotionKind.CURVED, speed=20.0)
+    assert DestinationMotion(kind=MotionKind.FIXED).speed is None
 
 
 def test_a_task_value_its_task_needs_is_required():
@@ -259,9 +318,10 @@ def test_a_task_value_its_task_needs_is_required():
 
 def test_collector_workers_must_divide_the_envs():
     with pytest.raises(ConfigError, match=r"^ppo.collector_workers=3 is not allowed: a divisor of ppo.num_envs=512"):
-        load("ppo.collector_workers=3", "curriculum.enabled=false")
-    with pytest.raises(ConfigError, match=r"^ppo.collector_workers=2 is not allowed: 1 while the start-box curric"):
-        load("ppo.collector_workers=2")
+        load("ppo.collector_workers=3")
     with pytest.raises(ConfigError, match=r"^ppo.collector_workers=2 is not allowed: 1 with method=reuse"):
         load("ppo.collector_workers=2", "method=reuse")
+    with pytest.raises(ConfigError, match=r"^ppo.collector_workers=2 is not allowed: 1 with resume \(exact resume"):
+        load("ppo.collector_workers=2", "resume=runs/some_run")
     assert load("ppo.collector_workers=2", "curriculum.enabled=false").ppo.collector_workers == 2
+    assert load("ppo.collector_workers=2").curriculum.enabled  # the workers' envs follow the curriculum too

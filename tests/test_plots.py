@@ -32,17 +32,18 @@ def _pixels_of(image: np.ndarray, colour: str, tolerance: int = 12) -> int:
     return int((np.abs(image.astype(int) - target).max(axis=-1) <= tolerance).sum())
 
 
-def test_trajectory_image_is_the_saved_figure(tmp_path):
-    image = trajectory_image(_records(), title="two episodes")
+def test_trajectory_image_is_the_saved_figure(tmp_path, paper_parameters):
+    airspace = paper_parameters.simulation.airspace
+    image = trajectory_image(_records(), airspace, title="two episodes")
     assert image.ndim == 3 and image.shape[2] == 3 and image.dtype == np.uint8
     for outcome in (Outcome.SUCCESS, Outcome.OUT_OF_AIRSPACE):  # both paths drawn (beyond their legend lines)
         assert _pixels_of(image, OUTCOME_COLOURS[outcome]) > 100
-    saved = np.asarray(Image.open(plot_trajectories(_records(), tmp_path / "t.png", title="two episodes")))
+    saved = np.asarray(Image.open(plot_trajectories(_records(), tmp_path / "t.png", airspace, title="two episodes")))
     assert saved.shape[2] in (3, 4) and saved.shape[0] > 100  # the file path still works
 
 
-def test_figure_to_array_matches_the_canvas_size():
-    figure = trajectory_figure(_records())
+def test_figure_to_array_matches_the_canvas_size(paper_parameters):
+    figure = trajectory_figure(_records(), paper_parameters.simulation.airspace)
     width, height = figure.canvas.get_width_height()
     image = figure_to_array(figure)
     assert image.shape == (height, width, 3)

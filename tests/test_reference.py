@@ -14,13 +14,10 @@ import torch
 
 from agrl.core.aircraft import maneuver_table
 from agrl.core.destinations import curved_turn_rate
-from agrl.core.parameters import ManeuverLoadFactors
-from agrl.core.simulation import DecisionSimulator, SimulationParameters
+from agrl.core.parameters import GuidanceParameters
+from agrl.core.simulation import DecisionSimulator
 from agrl.core.termination import Outcome
 from agrl.reference import maneuver_rows, reference_decision, wrap_angle
-
-PARAMS = SimulationParameters()
-MANEUVERS = ManeuverLoadFactors()
 
 # (aircraft x, y, z, v, theta, psi, phi), (destination x, y, z, psi), destination speed, turn rate
 SCENARIOS = {
@@ -34,11 +31,12 @@ SCENARIOS = {
 }
 
 
-def _torch_decisions(scenario, actions, dtype):
+def _torch_decisions(scenario, actions, dtype, params: GuidanceParameters):
     aircraft, destination, speed, turn_rate = scenario
-    controls = maneuver_table(MANEUVERS.turn, MANEUVERS.pull_up, MANEUVERS.push_over,
-                              MANEUVERS.acceleration, MANEUVERS.deceleration, dtype=dtype)
-    simulator = DecisionSimulator(PARAMS, controls, compile=False)
+    maneuvers = params.maneuvers
+    controls = maneuver_table(maneuvers.turn, maneuvers.pull_up, maneuvers.push_over,
+                              maneuvers.acceleration, maneuvers.deceleration, dtype=dtype)
+    simulator = DecisionSimulator(params.simulation, controls, compile=False)
     aircraft = torch.tensor([aircraft], dtype=dtype)
     destination = torch.tensor([destination], dtype=dtype)
     speed, turn_rate = torch.tensor([speed], dtype=dtype), torch.tensor([turn_rate], dtype=dtype)
@@ -53,11 +51,12 @@ def _torch_decisions(scenario, actions, dtype):
     return results
 
 
-def _reference_decisions(scenario, actions):
+def _reference_decisions(scenario, actions, params: GuidanceParameters):
     aircraft, destination, speed, turn_rate = scenario
     results = []
     for action in actions:
-        result = reference_decision(aircraft, destination, speed, turn_rate, action, PARAMS, MANEUVERS)
+        result = reference_decision(aircraft, destination, speed, turn_rate, action, params.simulation,
+                                    params.maneuvers)
         results.append((list(result.aircraft_state), list(result.destination_state), result.outcome))
         aircraft, destination = result.aircraft_state, result.destination_state
         if result.outcome != Outcome.RUNNING:
@@ -82,9 +81,9 @@ def _assert_close(torch_results, reference_results, position_m, angle_rad, speed
             assert abs(difference) <= tolerance, ("destination", name, value, expected)
 
 
-def test_maneuver_rows_match_the_torch_table():
-    table = MANEUVERS.controls()
-    for index, (axial, normal, direction) in enumerate(maneuver_rows(MANEUVERS)):
+def test_maneuver_rows_match_the_torch_table(paper_parameters):
+    table = paper_parameters.maneuvers.controls()
+    for index, (axial, normal, direction) in enumerate(maneuver_rows(paper_parameters.maneuvers)):
         assert table.axial_excess[index].item() == pytest.approx(axial)
         assert table.turn_direction[index].item() == direction
         if normal is None:
@@ -94,41 +93,43 @@ def test_maneuver_rows_match_the_torch_table():
 
 
 @pytest.mark.parametrize("name", list(SCENARIOS))
-def test_every_maneuver_agrees_in_float64(name):
+def test_every_maneuver_agrees_in_float64(name, paper_parameters):
     """Four decisions (600 integration steps) per maneuver: equal to rounding error."""
     for action in range(7):
         actions = [action, action, (action + 3) % 7, action]
-        expected = _reference_decisions(SCENARIOS[name], actions)
-        actual = _torch_decisions(SCENARIOS[name], actions, torch.float64)
+        expected = _reference_decisions(SCENARIOS[name], actions, paper_parameters)
+        actual = _torch_decisions(SCENARIOS[name], actions, torch.float64, paper_parameters)
         _assert_close(actual, expected, position_m=1e-6, angle_rad=1e-9, speed_ms=1e-9)
 
 
-def test_random_sequences_agree_in_float32():
+def test_random_sequences_agree_in_float32(paper_parameters):
     """What training runs: float32 tensors stay within float32 accuracy of the float64 reference."""
     rng = random.Random(0)
     for scenario in SCENARIOS.values():
         actions = [rng.randrange(7) for _ in range(5)]
-        expected = _reference_decisions(scenario, actions)
-        actual = _torch_decisions(scenario, actions, torch.float32)
+        expected = _reference_decisions(scenario, actions, paper_parameters)
+        actual = _torch_decisions(scenario, actions, torch.float32, paper_parameters)
         _assert_close(actual, expected, position_m=1.0, angle_rad=1e-4, speed_ms=1e-2)
 
 
-def test_the_destination_is_reflected_at_the_wall():
-    result = reference_decision(*SCENARIOS["wall"], 0, PARAMS, MANEUVERS)
+def test_the_destination_is_reflected_at_the_wall(paper_parameters):
+    result = reference_decision(*SCENARIOS["wall"], 0, paper_parameters.simulation,
+                                paper_parameters.maneuvers)
     x, y, _, heading = result.destination_state
-    assert x < PARAMS.airspace.x_max and y < PARAMS.airspace.y_max
+    assert x < paper_parameters.simulation.airspace.x_max and y < paper_parameters.simulation.airspace.y_max
     assert math.cos(heading) < 0 and math.sin(heading) < 0  # mirrored in both walls
 
 
-def test_success_and_leaving_the_airspace_end_the_decision_early():
+def test_success_and_leaving_the_airspace_end_the_decision_early(paper_parameters):
     arriving = ((-1_500.0, 0.0, 100.0, 200.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), 0.0, 0.0)
     leaving = ((9_800.0, 0.0, 1_000.0, 200.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), 0.0, 0.0)
     # 500 m to the tolerance disc at 200 m/s: 2.5 s; 200 m to the wall: 1 s (+1 step to be outside).
     cases = ((arriving, Outcome.SUCCESS, 125), (leaving, Outcome.OUT_OF_AIRSPACE, 51))
     for scenario, outcome, substeps in cases:
-        result = reference_decision(*scenario, 0, PARAMS, MANEUVERS)
+        result = reference_decision(*scenario, 0, paper_parameters.simulation,
+                                paper_parameters.maneuvers)
         assert result.outcome == outcome and result.substeps == substeps
         # The torch simulator freezes the row at the same integration step.
-        (aircraft, _, torch_outcome), = _torch_decisions(scenario, [0], torch.float64)
+        (aircraft, _, torch_outcome), = _torch_decisions(scenario, [0], torch.float64, paper_parameters)
         assert torch_outcome == outcome
         assert aircraft[0] == pytest.approx(result.aircraft_state[0], abs=1e-6)

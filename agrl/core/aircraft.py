@@ -16,7 +16,8 @@ from typing import NamedTuple
 
 import torch
 
-GRAVITY = 9.81  # m/s^2
+#: Standard gravity (m/s^2): a physical constant, not a choice, so it is not in ``conf/``.
+GRAVITY = 9.81
 
 #: Index of each field in an ``aircraft_state`` tensor ``(..., 7)``.
 AIRCRAFT_FIELDS = ("x", "y", "z", "speed", "flight_path_angle", "heading", "bank")
@@ -54,11 +55,11 @@ class AircraftState(NamedTuple):
 
 @dataclass(frozen=True)
 class AircraftLimits:
-    """Performance limits (paper's Table 1 plus this project's flight-path limit)."""
+    """Performance limits (Table 1's speeds plus this project's flight-path limit: ``conf/simulation/paper.yaml``)."""
 
-    min_speed: float = 100.0  # m/s, Table 1
-    max_speed: float = 250.0  # m/s, Table 1
-    max_flight_path_angle: float = 0.5235987755982988  # rad (30 deg), this project's choice
+    min_speed: float  # m/s
+    max_speed: float  # m/s
+    max_flight_path_angle: float  # rad
 
 
 class ManeuverControls(NamedTuple):

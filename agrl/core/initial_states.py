@@ -5,7 +5,7 @@ feasible, so this project trims the box: the aircraft begins heading +x, flies
 one whole decision period before it can act and needs about one turn radius to
 turn away, so starts near the +x wall would leave the airspace whatever the
 agent does. Starts inside a disc around the destination's start are redrawn so
-that no episode begins solved. The defaults live in ``conf/simulation/paper.yaml``.
+that no episode begins solved. The values live in ``conf/simulation/paper.yaml``.
 """
 
 from __future__ import annotations
@@ -20,11 +20,11 @@ import torch
 class InitialStateDistribution:
     """Uniform box for the aircraft's start (metres), a start speed (m/s), and an exclusion disc."""
 
-    x_range: tuple[float, float] = (-9_500.0, 7_000.0)
-    y_range: tuple[float, float] = (-9_500.0, 9_500.0)
-    z_range: tuple[float, float] = (0.0, 5_000.0)
-    speed_range: tuple[float, float] = (200.0, 200.0)
-    min_horizontal_distance: float = 2_000.0  # m from the destination's start
+    x_range: tuple[float, float]
+    y_range: tuple[float, float]
+    z_range: tuple[float, float]
+    speed_range: tuple[float, float]
+    min_horizontal_distance: float  # m from the destination's start
 
 
 def scale_distribution(

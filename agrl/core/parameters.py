@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -22,19 +21,44 @@ class MotionKind(StrEnum):
     IRREGULAR = "irregular"
 
 
+#: Where the destination starts: the origin, heading psi = 0 (x m, y m, z m, psi rad; the paper's Table 1).
+#: Fixed by the paper's setting and the same for every task, so ``conf/`` has no entry for it.
+DESTINATION_START = (0.0, 0.0, 0.0, 0.0)
+
+#: The :class:`DestinationMotion` fields each motion kind reads (the others stay None).
+MOTION_FIELDS = {
+    "fixed": (),
+    "uniform": ("speed",),
+    "curved": ("speed", "radius", "turn_direction"),
+    "irregular": ("change_probability", "speed_range", "max_turn_rate"),
+}
+
+
 @dataclass(frozen=True)
 class DestinationMotion:
-    """How the destination moves (section 5.3), and where it starts (Table 1: (0, 0, 0, 0))."""
+    """How the destination moves (section 5.3), and where it starts (:data:`DESTINATION_START`).
 
-    kind: MotionKind = MotionKind.FIXED
-    speed: float = 0.0  # m/s (uniform, curved)
-    radius: float = 1_000.0  # m (curved)
-    turn_direction: float = 1.0  # +1 or -1 (curved)
-    start: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)  # x m, y m, z m, psi rad
+    The values are in ``conf/task/*.yaml``. Only ``kind`` is required: each kind reads its own
+    fields (:data:`MOTION_FIELDS`) and a task's YAML sets only those, so the others are None (a
+    fixed destination has no speed) rather than a made-up value; a kind's own fields must be given.
+    """
+
+    kind: MotionKind
+    speed: float | None = None  # m/s (uniform, curved)
+    radius: float | None = None  # m (curved)
+    turn_direction: float | None = None  # +1 or -1 (curved)
+    start: tuple[float, float, float, float] = DESTINATION_START  # x m, y m, z m, psi rad
     # irregular: re-drawn at each decision with this probability, within these bounds
-    change_probability: float = 0.2
-    speed_range: tuple[float, float] = (10.0, 50.0)  # m/s
-    max_turn_rate: float = math.radians(2.3)  # rad/s: 20 m/s on a 500 m radius
+    change_probability: float | None = None
+    speed_range: tuple[float, float] | None = None  # m/s
+    max_turn_rate: float | None = None  # rad/s
+
+    def __post_init__(self) -> None:
+        kind = MotionKind(self.kind)
+        missing = [name for name in MOTION_FIELDS[kind.value] if getattr(self, name) is None]
+        if missing:
+            raise ValueError(f"DestinationMotion {missing[0]}=None is not allowed: kind={kind.value} needs "
+                             f"{', '.join(MOTION_FIELDS[kind.value])}")
 
     def initial_motion(
         self, count: int, generator: torch.Generator | None, device: torch.device
@@ -56,11 +80,11 @@ class DestinationMotion:
 class ManeuverLoadFactors:
     """The seven maneuvers' load factors (g); see ``conf/simulation/paper.yaml`` for the reasons."""
 
-    turn: float = 2.0
-    pull_up: float = 2.0
-    push_over: float = 0.0
-    acceleration: float = 0.3
-    deceleration: float = 0.3
+    turn: float
+    pull_up: float
+    push_over: float
+    acceleration: float
+    deceleration: float
 
     def controls(self, device: torch.device | str | None = None) -> ManeuverControls:
         return maneuver_table(
@@ -72,16 +96,18 @@ class ManeuverLoadFactors:
 class GuidanceParameters:
     """Everything that defines a guidance task for :class:`agrl.envs.GuidanceEnv`.
 
-    Training builds it from ``conf/`` (:func:`agrl.config.to_guidance_parameters`). The records' own defaults,
-    for torch-only use without Hydra, are conf's values for the fixed task with ``reward=both``
-    (``tests/test_config.py`` checks that they agree)."""
+    ``conf/`` is the one source of every value: these records have no defaults of their own (except
+    the physical constant :data:`agrl.core.aircraft.GRAVITY` and :data:`DESTINATION_START`, which
+    ``conf/`` does not hold). Build them from ``conf/`` with :func:`agrl.config.guidance_parameters`
+    (``guidance_parameters("task=curved", "reward=both")`` composes ``conf/`` as ``python -m agrl.train``
+    would, Hydra overrides and all) and change a value with :func:`dataclasses.replace`."""
 
-    simulation: SimulationParameters = field(default_factory=SimulationParameters)
-    maneuvers: ManeuverLoadFactors = field(default_factory=ManeuverLoadFactors)
-    reward: RewardParameters = field(default_factory=RewardParameters)
-    initial_state: InitialStateDistribution = field(default_factory=InitialStateDistribution)
-    destination: DestinationMotion = field(default_factory=DestinationMotion)
-    max_decisions: int = 200  # decision budget ("control times"), this project's choice
-    # Fuse the 20 ms integration step with torch.compile. No default: training turns it on
-    # (conf/simulation/paper.yaml), tests and single-episode tools choose eager; each caller says which.
+    simulation: SimulationParameters
+    maneuvers: ManeuverLoadFactors
+    reward: RewardParameters
+    initial_state: InitialStateDistribution
+    destination: DestinationMotion
+    max_decisions: int  # decision budget ("control times"), this project's choice
+    # Fuse the 20 ms integration step with torch.compile. Training turns it on (conf/simulation/paper.yaml),
+    # tests and single-episode tools choose eager; keyword-only so that each caller says which.
     compile: bool = field(kw_only=True)

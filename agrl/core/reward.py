@@ -30,20 +30,20 @@ from agrl.core.termination import Outcome
 
 @dataclass(frozen=True)
 class RewardParameters:
-    """Table 2's constants (defaults) and the two shaping switches."""
+    """Table 2's constants and the two shaping switches; the values are in ``conf/reward/*.yaml``."""
 
-    success: float = 20.0  # c1
-    out_of_airspace: float = -20.0  # c2
-    budget_exhausted: float = -10.0  # c3
-    action_change: float = -0.1  # c4
-    action_hold: float = -0.01  # c5
-    distance_weight: float = 1e-4  # c6, per metre
-    heading_weight: float = 0.5  # c7
-    altitude_weight: float = 1e-5  # c8, per metre
-    gamma: float = 0.99
-    use_continuous_action: bool = True  # the C term of equation 8
-    use_position: bool = True  # the P term of equation 8
-    switch_cost: float = 0.0  # NOT in the paper: reward units per instruction, see switch_cost_reward
+    success: float  # c1
+    out_of_airspace: float  # c2
+    budget_exhausted: float  # c3
+    action_change: float  # c4
+    action_hold: float  # c5
+    distance_weight: float  # c6, per metre
+    heading_weight: float  # c7
+    altitude_weight: float  # c8, per metre
+    gamma: float
+    use_continuous_action: bool  # the C term of equation 8
+    use_position: bool  # the P term of equation 8
+    switch_cost: float  # NOT in the paper: reward units per instruction, see switch_cost_reward
 
 
 def termination_reward(outcome: torch.Tensor, params: RewardParameters) -> torch.Tensor:

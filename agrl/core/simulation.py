@@ -14,7 +14,7 @@ on a CPU the per-call overhead (about 50 us) otherwise dominates small batches.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import torch
@@ -33,12 +33,14 @@ from agrl.core.termination import Airspace, Outcome, SuccessTolerance, is_outsid
 
 @dataclass(frozen=True)
 class SimulationParameters:
-    integration_step: float = 0.02  # s, Table 1
-    decision_period: float = 3.0  # s, Table 2 ("training time-step")
-    gravity: float = GRAVITY  # m/s^2
-    airspace: Airspace = field(default_factory=Airspace)
-    tolerance: SuccessTolerance = field(default_factory=SuccessTolerance)
-    limits: AircraftLimits = field(default_factory=AircraftLimits)
+    """The simulation's steps, box, tolerances and limits; the values are in ``conf/simulation/paper.yaml``."""
+
+    integration_step: float  # s (Table 1: 20 ms)
+    decision_period: float  # s (Table 2's "training time-step": 3 s)
+    airspace: Airspace
+    tolerance: SuccessTolerance
+    limits: AircraftLimits
+    gravity: float = GRAVITY  # m/s^2: a physical constant, the one value conf/ does not hold
 
     @property
     def substeps(self) -> int:

@@ -25,23 +25,23 @@ class Outcome(IntEnum):
 
 @dataclass(frozen=True)
 class Airspace:
-    """Equation 1's box (metres); Table 1 gives the paper's values."""
+    """Equation 1's box (metres); the values (Table 1's) are in ``conf/simulation/paper.yaml``."""
 
-    x_min: float = -10_000.0
-    x_max: float = 10_000.0
-    y_min: float = -10_000.0
-    y_max: float = 10_000.0
-    z_min: float = 0.0
-    z_max: float = 5_000.0
+    x_min: float
+    x_max: float
+    y_min: float
+    y_max: float
+    z_min: float
+    z_max: float
 
 
 @dataclass(frozen=True)
 class SuccessTolerance:
-    """Equation 2's allowed ranges; the paper gives no values (this project's choice)."""
+    """Equation 2's allowed ranges (the paper gives no values: ``conf/simulation/paper.yaml``)."""
 
-    distance: float = 1_000.0  # d_e, m (horizontal)
-    altitude: float = 200.0  # z_e, m
-    heading: float = 0.5235987755982988  # psi_e, rad (30 deg)
+    distance: float  # d_e, m (horizontal)
+    altitude: float  # z_e, m
+    heading: float  # psi_e, rad
 
 
 def is_success(

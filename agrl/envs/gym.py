@@ -39,7 +39,8 @@ import numpy as np
 import torch
 from gymnasium import spaces
 
-from agrl.config import ConfigError, compose_config, config_options, load_config, to_guidance_parameters
+from agrl.config import ConfigError, config_options
+from agrl.config import guidance_parameters as composed_guidance_parameters
 from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.destinations import redraw_irregular_motion
 from agrl.core.initial_states import sample_initial_aircraft
@@ -93,7 +94,7 @@ def guidance_parameters(
         _fail("reward", reward, f"one of {', '.join(rewards)} (None: the training default, conf/config.yaml)")
     if not isinstance(compile, bool):
         _fail("compile", compile, "True or False")
-    overrides = [f"task={task}", f"simulation.compile={str(compile).lower()}"]
+    overrides = [f"task={task}"]
     if reward is not None:
         overrides.append(f"reward={reward}")
     given = {"speed": speed, "radius": radius, "turn_direction": turn_direction}
@@ -114,17 +115,16 @@ def guidance_parameters(
         if not integral or max_decisions < 1:
             _fail("max_decisions", max_decisions, "an integer >= 1 (decisions of 3 s per episode)")
         overrides.append(f"simulation.max_decisions={int(max_decisions)}")
-    return _composed_parameters(tuple(overrides))
+    return _composed_parameters(tuple(overrides), compile)
 
 
 @functools.lru_cache(maxsize=64)
-def _composed_parameters(overrides: tuple[str, ...]) -> GuidanceParameters:
+def _composed_parameters(overrides: tuple[str, ...], compile: bool) -> GuidanceParameters:
     # Composing takes a few tenths of a second; vector envs and SB3's make_vec_env ask for the same task often.
     try:
-        config = load_config(compose_config(*overrides))
+        return composed_guidance_parameters(*overrides, compile=compile)
     except ConfigError as error:
         raise ValueError(str(error)) from None
-    return to_guidance_parameters(config.task, config.reward, config.simulation)
 
 
 def scenario_reset(env: GuidanceEnv, options: dict[str, Any]):

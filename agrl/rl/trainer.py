@@ -37,7 +37,7 @@ from agrl.rl.checkpoint import (
     resolve_checkpoint_path,
     save_checkpoint,
 )
-from agrl.rl.curriculum import promoted_scale, start_distribution
+from agrl.rl.curriculum import SharedScaleGuidanceEnv, promoted_scale, shared_scale, start_distribution
 from agrl.rl.evaluation import instruction_latency_ms, run_episodes, summarise, write_evaluation
 from agrl.rl.metrics import MetricsLog, episode_statistics, progress_line
 from agrl.rl.models import make_actor, make_critic
@@ -103,6 +103,8 @@ class Trainer:
         if resume_payload is not None:
             self._restore(resume_payload)
         self.env.set_initial_state_distribution(start_distribution(self.params, self.counters.curriculum_scale))
+        # The workers' envs (ppo.collector_workers > 1) read the curriculum scale from here (agrl.rl.curriculum).
+        self.worker_scale = shared_scale(self.counters.curriculum_scale) if cfg.ppo.collector_workers > 1 else None
         self.collector = self._make_collector()
         if resume_payload is not None:
             restore_rng_states(self.env, resume_payload["rng"])  # building the collector may run the policy
@@ -124,16 +126,21 @@ class Trainer:
         """``ppo.collector_workers=1``: one Collector stepping ``self.env`` here (exact resume carries its rows).
         N > 1: TorchRL's MultiSyncCollector, N processes of ``num_envs / N`` envs each, their batches
         concatenated along the env dimension (the same keys, shapes and dtypes); the actor's weights go to the
-        workers before each batch. Config validation keeps N > 1 to runs without curriculum, reuse or resume,
-        which all need ``self.env`` to be the envs that collect."""
+        workers before each batch, and so does the curriculum's scale (:class:`SharedScaleGuidanceEnv` reads
+        ``self.worker_scale``, in shared memory, at each reset). Config validation keeps N > 1 to runs without
+        reuse or resume, which need ``self.env`` to be the envs that collect."""
         workers = self.cfg.ppo.collector_workers
         if workers == 1:
             return Collector(self.env, self.actor, frames_per_batch=self.frames_per_batch, total_frames=-1,
                              device=self.device, auto_register_policy_transforms=False)
         envs_per_worker = self.cfg.ppo.num_envs // workers
-        make_envs = [functools.partial(GuidanceEnv, self.params, num_envs=envs_per_worker, device=self.device,
-                                       seed=self.cfg.seed + WORKER_SEED_STRIDE * worker) for worker in range(workers)]
-        return MultiSyncCollector(make_envs, self.actor, frames_per_batch=self.frames_per_batch, total_frames=-1,
+        make_envs = [functools.partial(SharedScaleGuidanceEnv, self.params, num_envs=envs_per_worker,
+                                       device=self.device, seed=self.cfg.seed + WORKER_SEED_STRIDE * worker)
+                     for worker in range(workers)]
+        # The scale goes as an env kwarg: TorchRL cloudpickles the env factory (a copy of any tensor in it) but
+        # hands create_env_kwargs to the process itself, which torch.multiprocessing pickles as shared storage.
+        return MultiSyncCollector(make_envs, self.actor, create_env_kwargs=[{"scale": self.worker_scale}] * workers,
+                                  frames_per_batch=self.frames_per_batch, total_frames=-1,
                                   device=self.device, cat_results=0, update_at_each_batch=True, use_buffers=True,
                                   num_threads=torch.get_num_threads(),  # this process's threads: the PPO update
                                   auto_register_policy_transforms=False)
@@ -238,6 +245,8 @@ class Trainer:
         if scale != self.counters.curriculum_scale:
             self.counters.curriculum_scale = scale
             self.env.set_initial_state_distribution(start_distribution(self.params, scale))
+            if self.worker_scale is not None:
+                self.worker_scale.fill_(scale)  # the workers' next resets: collection waits for the next batch
             log.info("curriculum: training starts now use %.0f %% of the start box", 100 * scale)
         metrics["train/curriculum_scale"] = self.counters.curriculum_scale
 

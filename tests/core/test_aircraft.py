@@ -6,6 +6,7 @@ never copied from a run of the code under test.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -14,32 +15,43 @@ import torch
 from agrl.core.aircraft import (
     GRAVITY,
     MANEUVER_NAMES,
-    AircraftLimits,
     AircraftState,
     integrate_aircraft,
     maneuver_table,
     point_mass_derivatives,
     wrap_angle,
 )
-from agrl.core.parameters import ManeuverLoadFactors
-from agrl.core.simulation import DecisionSimulator, SimulationParameters
+from agrl.core.simulation import DecisionSimulator
 from agrl.core.termination import Airspace, Outcome
 
 F64 = torch.float64
 ACTION = {name: index for index, name in enumerate(MANEUVER_NAMES)}
-LOAD_FACTORS = ManeuverLoadFactors()
-LIMITS = AircraftLimits()
 # A large airspace so that long straight flights never reach a wall.
 BIG_AIRSPACE = Airspace(x_min=-1e6, x_max=1e6, y_min=-1e6, y_max=1e6, z_min=-1e6, z_max=1e6)
 
 
-def controls64():
-    lf = LOAD_FACTORS
+@pytest.fixture(scope="module")
+def load_factors(paper_parameters):
+    return paper_parameters.maneuvers
+
+
+@pytest.fixture(scope="module")
+def limits(paper_parameters):
+    return paper_parameters.simulation.limits
+
+
+@pytest.fixture(scope="module")
+def table(load_factors):
+    """The maneuvers' control law in float64."""
+    lf = load_factors
     return maneuver_table(lf.turn, lf.pull_up, lf.push_over, lf.acceleration, lf.deceleration, dtype=F64)
 
 
-def make_simulator(airspace: Airspace = BIG_AIRSPACE) -> DecisionSimulator:
-    return DecisionSimulator(SimulationParameters(airspace=airspace), controls64(), compile=False)
+@pytest.fixture
+def simulator(paper_parameters, table) -> DecisionSimulator:
+    """conf's simulation in :data:`BIG_AIRSPACE`, float64 controls, eager."""
+    return DecisionSimulator(dataclasses.replace(paper_parameters.simulation, airspace=BIG_AIRSPACE), table,
+                             compile=False)
 
 
 def fly(simulator, aircraft, actions, decisions):
@@ -94,7 +106,7 @@ def test_point_mass_derivatives_match_equation_3():
 
 
 @pytest.mark.parametrize("maneuver", ["steady_flight", "accelerate", "decelerate"])
-def test_wings_level_maneuvers_hold_flight_path_angle(maneuver):
+def test_wings_level_maneuvers_hold_flight_path_angle(maneuver, table, limits):
     # The balanced normal load n_z = cos(theta) makes theta' = 0 exactly at zero bank.
     theta = torch.tensor([-0.3, 0.0, 0.25], dtype=F64)
     aircraft = AircraftState(
@@ -103,16 +115,15 @@ def test_wings_level_maneuvers_hold_flight_path_angle(maneuver):
         heading=torch.zeros(3, dtype=F64),
         bank=torch.full((3,), 0.4, dtype=F64),
     )
-    table = controls64()
     a = ACTION[maneuver]
     moved = integrate_aircraft(
-        aircraft, table.axial_excess[a], table.normal_load[a], table.turn_direction[a], 0.02, LIMITS
+        aircraft, table.axial_excess[a], table.normal_load[a], table.turn_direction[a], 0.02, limits
     )
     torch.testing.assert_close(moved.flight_path_angle, theta, rtol=0, atol=1e-12)
     assert torch.all(moved.bank == 0)
 
 
-def test_steady_flight_holds_altitude_speed_heading_and_flight_path_angle():
+def test_steady_flight_holds_altitude_speed_heading_and_flight_path_angle(simulator):
     start = torch.tensor(
         [
             state(-5_000.0, 2_000.0, 2_000.0, 150.0, 0.0, 0.7),  # level
@@ -122,7 +133,7 @@ def test_steady_flight_holds_altitude_speed_heading_and_flight_path_angle():
         dtype=F64,
     )
     decisions = 20  # 60 s, 3000 integration steps
-    states, outcomes = fly(make_simulator(), start, torch.zeros(3, dtype=torch.int64), decisions)
+    states, outcomes = fly(simulator, start, torch.zeros(3, dtype=torch.int64), decisions)
     assert torch.all(outcomes == Outcome.RUNNING)
     elapsed = decisions * 3.0
     end = states[-1]
@@ -151,8 +162,8 @@ def fit_circle(x: torch.Tensor, y: torch.Tensor) -> tuple[float, float, float]:
 
 
 @pytest.mark.parametrize("maneuver,side", [("left_turn", 1.0), ("right_turn", -1.0)])
-def test_level_max_load_factor_turn_radius(maneuver, side):
-    n = LOAD_FACTORS.turn
+def test_level_max_load_factor_turn_radius(maneuver, side, simulator, load_factors):
+    n = load_factors.turn
     v, g = 200.0, GRAVITY
     phi = math.acos(1.0 / n)
     radius = v * v / (g * math.tan(phi))
@@ -161,7 +172,7 @@ def test_level_max_load_factor_turn_radius(maneuver, side):
     decisions = math.ceil(period / 3.0) + 1  # a little more than one full turn
     x0, y0, z0 = -1_000.0, 500.0, 2_500.0
     start = torch.tensor([state(x0, y0, z0, v, 0.0, 0.0)], dtype=F64)
-    states, outcomes = fly(make_simulator(), start, torch.tensor([ACTION[maneuver]]), decisions)
+    states, outcomes = fly(simulator, start, torch.tensor([ACTION[maneuver]]), decisions)
     assert torch.all(outcomes == Outcome.RUNNING)
     track = torch.stack(states)[:, 0]  # (decisions + 1, 7)
 
@@ -185,9 +196,8 @@ def test_level_max_load_factor_turn_radius(maneuver, side):
     )
 
 
-def test_left_turn_turns_towards_plus_y():
+def test_left_turn_turns_towards_plus_y(table, limits):
     # psi = 0 flies along +x; a left turn must swing the nose towards +y (psi increasing).
-    table = controls64()
     one = torch.ones(1, dtype=F64)
     aircraft = AircraftState(0 * one, 0 * one, 1000 * one, 200 * one, 0 * one, 0 * one, 0 * one)
     for name, sign in (("left_turn", 1.0), ("right_turn", -1.0)):
@@ -195,39 +205,37 @@ def test_left_turn_turns_towards_plus_y():
         moved = aircraft
         for _ in range(50):
             moved = integrate_aircraft(
-                moved, table.axial_excess[a], table.normal_load[a], table.turn_direction[a], 0.02, LIMITS
+                moved, table.axial_excess[a], table.normal_load[a], table.turn_direction[a], 0.02, limits
             )
         assert sign * float(moved.heading) > 0
         assert sign * float(moved.y) > 0
         assert sign * float(moved.bank) < 0  # positive bank makes psi decrease (equation 3)
 
 
-def test_climbing_turn_holds_flight_path_angle():
+def test_climbing_turn_holds_flight_path_angle(simulator, load_factors):
     start = torch.tensor([state(0.0, 0.0, 1_000.0, 200.0, 0.2, 0.0)] * 2, dtype=F64)
     actions = torch.tensor([ACTION["left_turn"], ACTION["right_turn"]])
-    states, _ = fly(make_simulator(), start, actions, 4)
+    states, _ = fly(simulator, start, actions, 4)
     for s in states:
         torch.testing.assert_close(s[:, 4], torch.full((2,), 0.2, dtype=F64), rtol=0, atol=1e-9)
     # The coordinated bank satisfies n cos(phi) = cos(theta).
-    expected_bank = math.acos(math.cos(0.2) / LOAD_FACTORS.turn)
+    expected_bank = math.acos(math.cos(0.2) / load_factors.turn)
     assert states[-1][:, 6].tolist() == pytest.approx([-expected_bank, expected_bank], rel=1e-9)
 
 
-@pytest.mark.parametrize(
-    "maneuver,load", [("pull_up", LOAD_FACTORS.pull_up), ("push_over", LOAD_FACTORS.push_over)]
-)
-def test_pull_up_and_push_over_flight_path_rate(maneuver, load):
+@pytest.mark.parametrize("maneuver", ["pull_up", "push_over"])
+def test_pull_up_and_push_over_flight_path_rate(maneuver, load_factors, table, limits):
+    load = getattr(load_factors, maneuver)
     generator = torch.Generator().manual_seed(7)
     count = 16
     v = 100 + 150 * torch.rand(count, generator=generator, dtype=F64)
     theta = (torch.rand(count, generator=generator, dtype=F64) - 0.5) * 0.8
     zeros = torch.zeros(count, dtype=F64)
     aircraft = AircraftState(zeros, zeros, zeros + 1000, v, theta, zeros, zeros)
-    table = controls64()
     a = ACTION[maneuver]
     dt = 0.02
     moved = integrate_aircraft(
-        aircraft, table.axial_excess[a], table.normal_load[a], table.turn_direction[a], dt, LIMITS
+        aircraft, table.axial_excess[a], table.normal_load[a], table.turn_direction[a], dt, limits
     )
     for i in range(count):
         vi, th = float(v[i]), float(theta[i])
@@ -239,18 +247,18 @@ def test_pull_up_and_push_over_flight_path_rate(maneuver, load):
 
 
 @pytest.mark.parametrize("theta", [0.0, 0.2])
-def test_accelerate_and_decelerate_rates(theta):
+def test_accelerate_and_decelerate_rates(theta, simulator, load_factors):
     start = torch.tensor([state(0.0, 0.0, 1_000.0, 150.0, theta, 0.0)] * 2, dtype=F64)
     actions = torch.tensor([ACTION["accelerate"], ACTION["decelerate"]])
-    states, _ = fly(make_simulator(), start, actions, 1)
+    states, _ = fly(simulator, start, actions, 1)
     delta = GRAVITY * 3.0  # per g of excess over one 3 s decision
-    expected = [150.0 + LOAD_FACTORS.acceleration * delta, 150.0 - LOAD_FACTORS.deceleration * delta]
+    expected = [150.0 + load_factors.acceleration * delta, 150.0 - load_factors.deceleration * delta]
     assert states[-1][:, 3].tolist() == pytest.approx(expected, rel=1e-9)
     assert states[-1][:, 4].tolist() == pytest.approx([theta, theta], abs=1e-9)
     # Distance flown: the documented semi-implicit scheme moves with the updated speed,
     # sum_{k=1..N} (v0 + a k dt) dt; it differs from the exact v0 T + a T^2 / 2 by a T dt / 2.
     dt, steps = 0.02, 150
-    for row, excess in enumerate((LOAD_FACTORS.acceleration, -LOAD_FACTORS.deceleration)):
+    for row, excess in enumerate((load_factors.acceleration, -load_factors.deceleration)):
         a = GRAVITY * excess
         path = sum((150.0 + a * k * dt) * dt for k in range(1, steps + 1))
         exact = 150.0 * 3.0 + a * 3.0**2 / 2
@@ -259,23 +267,23 @@ def test_accelerate_and_decelerate_rates(theta):
         assert flown == pytest.approx(path, abs=1e-6)
 
 
-def test_speed_clamps_at_limits():
+def test_speed_clamps_at_limits(simulator, limits):
     start = torch.tensor(
         [state(0.0, 0.0, 1_000.0, 245.0, 0.0, 0.0), state(0.0, 0.0, 1_000.0, 104.0, 0.0, 0.0)], dtype=F64
     )
     actions = torch.tensor([ACTION["accelerate"], ACTION["decelerate"]])
-    states, _ = fly(make_simulator(), start, actions, 3)
+    states, _ = fly(simulator, start, actions, 3)
     for s in states[1:]:
-        assert s[:, 3].tolist() == [LIMITS.max_speed, LIMITS.min_speed]
+        assert s[:, 3].tolist() == [limits.max_speed, limits.min_speed]
 
 
-def test_flight_path_angle_clamps_at_limit():
+def test_flight_path_angle_clamps_at_limit(simulator, limits):
     start = torch.tensor(
         [state(0.0, 0.0, 500.0, 200.0, 0.0, 0.0), state(0.0, 0.0, 4_500.0, 200.0, 0.0, 0.0)], dtype=F64
     )
     actions = torch.tensor([ACTION["pull_up"], ACTION["push_over"]])
-    states, _ = fly(make_simulator(), start, actions, 6)
-    limit = LIMITS.max_flight_path_angle
+    states, _ = fly(simulator, start, actions, 6)
+    limit = limits.max_flight_path_angle
     thetas = torch.stack([s[:, 4] for s in states])
     assert float(thetas.abs().max()) <= limit
     # Without the clamp theta' >= g / (2 v) would pass 30 deg within about 11 s.

@@ -16,7 +16,8 @@ from agrl.core.destinations import (
 )
 from agrl.core.termination import Airspace
 
-AIRSPACE = Airspace()
+# A 20 km x 20 km box, the paper's (Table 1): the wall tests below mirror at x, y = +-10 km.
+AIRSPACE = Airspace(x_min=-10_000.0, x_max=10_000.0, y_min=-10_000.0, y_max=10_000.0, z_min=0.0, z_max=5_000.0)
 X_BOUNDS = (AIRSPACE.x_min, AIRSPACE.x_max)
 Y_BOUNDS = (AIRSPACE.y_min, AIRSPACE.y_max)
 DT = 0.02

@@ -7,15 +7,25 @@ import math
 import pytest
 import torch
 
-from agrl.core.aircraft import MANEUVER_NAMES, AircraftLimits
+from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.observation import OBSERVATION_FEATURES, OBSERVATION_SIZE, policy_observation
-from agrl.core.termination import Airspace
 
-AIRSPACE = Airspace()
-LIMITS = AircraftLimits()
 INDEX = {name: i for i, name in enumerate(OBSERVATION_FEATURES)}
 ABSOLUTE_XY = [INDEX["x"], INDEX["y"]]
 NUM_ACTIONS = len(MANEUVER_NAMES)
+
+
+@pytest.fixture(scope="module")
+def airspace(paper_parameters):
+    return paper_parameters.simulation.airspace
+
+
+@pytest.fixture(scope="module")
+def observe(paper_parameters):
+    """``policy_observation`` with conf's airspace and limits."""
+    simulation = paper_parameters.simulation
+    return lambda aircraft, destination, last_action: policy_observation(
+        aircraft, destination, last_action, simulation.airspace, simulation.limits)
 
 
 def random_inputs(count: int, seed: int):
@@ -27,7 +37,7 @@ def random_inputs(count: int, seed: int):
             u(count) * 16_000 - 8_000,
             u(count) * 5_000,
             100 + 150 * u(count),
-            (u(count) * 2 - 1) * LIMITS.max_flight_path_angle,
+            (u(count) * 2 - 1) * math.radians(30),  # flight-path angles up to conf's 30 deg limit
             (u(count) * 2 - 1) * math.pi,
             (u(count) * 2 - 1) * 1.2,
         ),
@@ -46,15 +56,11 @@ def random_inputs(count: int, seed: int):
     return aircraft, destination, last_action
 
 
-def observe(aircraft, destination, last_action):
-    return policy_observation(aircraft, destination, last_action, AIRSPACE, LIMITS)
-
-
 def other_columns(exclude):
     return [i for i in range(OBSERVATION_SIZE) if i not in exclude]
 
 
-def test_shape_and_finite():
+def test_shape_and_finite(observe):
     aircraft, destination, last_action = random_inputs(64, seed=0)
     obs = observe(aircraft, destination, last_action)
     assert obs.shape == (64, OBSERVATION_SIZE)
@@ -68,14 +74,14 @@ def test_shape_and_finite():
     torch.testing.assert_close(obs2.reshape(64, -1), obs)
 
 
-def test_finite_when_aircraft_is_on_the_destination():
+def test_finite_when_aircraft_is_on_the_destination(observe):
     aircraft = torch.tensor([[0.0, 0.0, 0.0, 100.0, 0.0, 0.0, 0.0]])
     destination = torch.zeros(1, 4)
     obs = observe(aircraft, destination, torch.zeros(1, dtype=torch.int64))
     assert torch.isfinite(obs).all()
 
 
-def test_invariant_to_horizontal_translation():
+def test_invariant_to_horizontal_translation(observe, airspace):
     aircraft, destination, last_action = random_inputs(32, seed=1)
     obs = observe(aircraft, destination, last_action)
     shift = torch.tensor([1_234.5, -2_345.6], dtype=torch.float64)
@@ -86,13 +92,13 @@ def test_invariant_to_horizontal_translation():
     keep = other_columns(ABSOLUTE_XY)
     torch.testing.assert_close(moved[:, keep], obs[:, keep], rtol=0, atol=1e-9)
     # The absolute position features do see the shift (x maps 20 km to 2 units).
-    expected_dx = 2 * shift[0] / (AIRSPACE.x_max - AIRSPACE.x_min)
+    expected_dx = 2 * shift[0] / (airspace.x_max - airspace.x_min)
     torch.testing.assert_close(
         moved[:, INDEX["x"]] - obs[:, INDEX["x"]], expected_dx.expand(32), rtol=0, atol=1e-9
     )
 
 
-def test_invariant_to_rotation():
+def test_invariant_to_rotation(observe):
     aircraft, destination, last_action = random_inputs(32, seed=2)
     obs = observe(aircraft, destination, last_action)
     for angle in (0.3, -2.0, math.pi):
@@ -108,7 +114,7 @@ def test_invariant_to_rotation():
         torch.testing.assert_close(rotated[:, keep], obs[:, keep], rtol=0, atol=1e-9)
 
 
-def test_last_action_one_hot():
+def test_last_action_one_hot(observe):
     aircraft, destination, _ = random_inputs(NUM_ACTIONS, seed=3)
     last_action = torch.arange(NUM_ACTIONS)
     obs = observe(aircraft, destination, last_action)
@@ -118,7 +124,7 @@ def test_last_action_one_hot():
         assert INDEX[f"last_action_{name}"] >= OBSERVATION_SIZE - NUM_ACTIONS
 
 
-def test_geometry_features():
+def test_geometry_features(observe):
     # Destination 3 km straight ahead (aircraft heading +y), same altitude and heading, aircraft behind it.
     aircraft = torch.tensor([[0.0, -3_000.0, 1_000.0, 175.0, 0.0, math.pi / 2, 0.0]], dtype=torch.float64)
     destination = torch.tensor([[0.0, 0.0, 1_000.0, math.pi / 2]], dtype=torch.float64)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -31,7 +32,16 @@ CUSTOM = RewardParameters(
     heading_weight=0.7,
     altitude_weight=3e-5,
     gamma=0.9,
+    use_continuous_action=True,
+    use_position=True,
+    switch_cost=0.0,
 )
+
+
+@pytest.fixture(scope="module")
+def paper_reward(paper_parameters):
+    """conf/reward/both.yaml: Table 2's constants, both shaping terms, no switch cost."""
+    return paper_parameters.reward
 
 
 def hand_position_potential(aircraft, destination, params: RewardParameters) -> float:
@@ -66,13 +76,12 @@ def random_states(count: int, seed: int):
     return aircraft, destination
 
 
-def test_termination_reward_values():
+def test_termination_reward_values(paper_reward):
     outcome = torch.tensor(
         [Outcome.RUNNING, Outcome.SUCCESS, Outcome.OUT_OF_AIRSPACE, Outcome.BUDGET_EXHAUSTED]
     )
     assert termination_reward(outcome, CUSTOM).tolist() == [0.0, 7.0, -3.0, -2.0]
-    default = RewardParameters()
-    assert termination_reward(outcome, default).tolist() == [0.0, 20.0, -20.0, -10.0]  # Table 2
+    assert termination_reward(outcome, paper_reward).tolist() == [0.0, 20.0, -20.0, -10.0]  # Table 2
 
 
 def test_continuous_action_potential():
@@ -91,8 +100,8 @@ def test_position_potential_against_hand_computation():
         )
 
 
-def test_position_potential_terms():
-    params = RewardParameters()
+def test_position_potential_terms(paper_reward):
+    params = paper_reward
     dest = torch.tensor([0.0, 0.0, 0.0, 0.0])
     # 3-4-5 triangle (5 km), 1 km above, same heading: -0.5 + 0.5 - 0.01.
     on_track = position_potential(
@@ -108,14 +117,14 @@ def test_position_potential_terms():
     assert float(closer) > float(on_track)
 
 
-def test_potential_switches_and_terminal():
+def test_potential_switches_and_terminal(paper_reward):
     aircraft, destination = random_states(8, seed=9)
     last = torch.tensor([0, 1, 1, 2, 3, 4, 5, 6])
     before = torch.tensor([0, 0, 1, 2, 4, 4, 6, 6])
     not_terminal = torch.zeros(8, dtype=torch.bool)
     for use_c in (True, False):
         for use_p in (True, False):
-            params = RewardParameters(use_continuous_action=use_c, use_position=use_p)
+            params = dataclasses.replace(paper_reward, use_continuous_action=use_c, use_position=use_p)
             got = potential(aircraft, destination, last, before, not_terminal, params)
             expected = [
                 hand_potential(aircraft[i], destination[i], last[i], before[i], params) for i in range(8)
@@ -124,7 +133,7 @@ def test_potential_switches_and_terminal():
             if not use_c and not use_p:
                 assert got.tolist() == [0.0] * 8
     terminal = torch.tensor([True, False] * 4)
-    got = potential(aircraft, destination, last, before, terminal, RewardParameters())
+    got = potential(aircraft, destination, last, before, terminal, paper_reward)
     assert got[terminal].tolist() == [0.0] * 4
     assert all(v != 0.0 for v in got[~terminal].tolist())
 
@@ -160,15 +169,16 @@ def run_episodes(params: GuidanceParameters, num_envs: int, seed: int):
 
 
 @pytest.mark.parametrize(
-    "kind,reward",
+    "kind,reward_changes",
     [
-        (MotionKind.FIXED, RewardParameters()),
-        (MotionKind.CURVED, RewardParameters(gamma=0.9, use_continuous_action=True, use_position=True)),
+        (MotionKind.FIXED, {}),
+        (MotionKind.CURVED, {"gamma": 0.9, "use_continuous_action": True, "use_position": True}),
     ],
 )
-def test_shaping_telescopes_over_an_episode(kind, reward):
-    destination = DestinationMotion(kind=kind, speed=20.0, radius=1_000.0)
-    params = GuidanceParameters(max_decisions=12, reward=reward, destination=destination, compile=False)
+def test_shaping_telescopes_over_an_episode(kind, reward_changes, paper_parameters):
+    reward = dataclasses.replace(paper_parameters.reward, **reward_changes)
+    destination = DestinationMotion(kind=kind, speed=20.0, radius=1_000.0, turn_direction=1.0)
+    params = dataclasses.replace(paper_parameters, max_decisions=12, reward=reward, destination=destination)
     num_envs = 4
     start, records = run_episodes(params, num_envs, seed=11)
     gamma = reward.gamma
@@ -209,10 +219,11 @@ def test_shaping_telescopes_over_an_episode(kind, reward):
 EPISODE_START = torch.tensor([-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0])  # mid-airspace, heading +x
 
 
-def env_rewards(reward_params: RewardParameters, actions: list[int]) -> tuple[list[float], int]:
-    """The env's reward at each decision of ``actions`` from EPISODE_START (none ends the episode), and the
-    episode's instruction count."""
-    env = GuidanceEnv(GuidanceParameters(reward=reward_params, compile=False), num_envs=1, seed=0)
+def env_rewards(params: GuidanceParameters, reward_params: RewardParameters,
+                actions: list[int]) -> tuple[list[float], int]:
+    """The env's reward (``params`` with ``reward_params``) at each decision of ``actions`` from EPISODE_START
+    (none ends the episode), and the episode's instruction count."""
+    env = GuidanceEnv(dataclasses.replace(params, reward=reward_params), num_envs=1, seed=0)
     td = env.reset(env.scenario(aircraft_state=EPISODE_START))
     out = []
     for action in actions:
@@ -224,46 +235,52 @@ def env_rewards(reward_params: RewardParameters, actions: list[int]) -> tuple[li
     return out, int(td["instruction_count"])
 
 
-def test_env_reward_switches():
+def test_env_reward_switches(paper_parameters):
     actions = [0, 3, 3, 1]  # hold, change, hold, change
 
     def rewards(reward_params):
-        return env_rewards(reward_params, actions)[0]
+        return env_rewards(paper_parameters, reward_params, actions)[0]
+
+    def shaping(use_continuous_action, use_position):
+        return dataclasses.replace(paper_parameters.reward, use_continuous_action=use_continuous_action,
+                                   use_position=use_position)
 
     gamma = 0.99
-    off = rewards(RewardParameters(use_continuous_action=False, use_position=False))
+    off = rewards(shaping(False, False))
     assert off == [0.0] * len(actions)
     c4, c5 = -0.1, -0.01
-    only_c = rewards(RewardParameters(use_continuous_action=True, use_position=False))
+    only_c = rewards(shaping(True, False))
     # C(S_0) = c5 (no previous change); C(S_{t+1}) is c4 if A_t != A_{t-1}.
     expected_c = [gamma * c5 - c5, gamma * c4 - c5, gamma * c5 - c4, gamma * c4 - c5]
     assert only_c == pytest.approx(expected_c, abs=1e-6)
-    only_p = rewards(RewardParameters(use_continuous_action=False, use_position=True))
-    both = rewards(RewardParameters())
+    only_p = rewards(shaping(False, True))
+    both = rewards(paper_parameters.reward)
     assert both == pytest.approx([c + p for c, p in zip(only_c, only_p, strict=True)], abs=1e-5)
     # Flying towards the destination: the position shaping is positive on the first (steady) step.
     assert only_p[0] > 0
 
 
 # ---------------------------------------------------------------------------- switch cost (not in the paper)
-def test_switch_cost_reward_by_hand():
+def test_switch_cost_reward_by_hand(paper_reward):
     # An episode starts in steady flight (0); each decision compares with the maneuver being flown.
     actions = torch.tensor([0, 3, 3, 1, 1, 0])
     previous = torch.tensor([0, 0, 3, 3, 1, 1])
-    got = switch_cost_reward(actions, previous, RewardParameters(switch_cost=0.25))
+    priced = dataclasses.replace(paper_reward, switch_cost=0.25)
+    got = switch_cost_reward(actions, previous, priced)
     assert got.tolist() == [0.0, -0.25, 0.0, -0.25, 0.0, -0.25]
     # A first decision that commands a maneuver is an instruction too.
-    first = switch_cost_reward(torch.tensor([2]), torch.tensor([0]), RewardParameters(switch_cost=0.25))
+    first = switch_cost_reward(torch.tensor([2]), torch.tensor([0]), priced)
     assert first.tolist() == [-0.25]
-    # Off by default, so the paper's four variants are unchanged.
-    assert switch_cost_reward(actions, previous, RewardParameters()).tolist() == [0.0] * 6
+    # Off in the paper's rewards (conf/reward/both.yaml), so its four variants are unchanged.
+    assert switch_cost_reward(actions, previous, paper_reward).tolist() == [0.0] * 6
 
 
-def test_env_switch_cost_adds_minus_cost_per_instruction():
+def test_env_switch_cost_adds_minus_cost_per_instruction(paper_parameters):
     actions = [2, 2, 0, 5, 5, 6]  # instructions: 0->2, 2->0, 0->5, 5->6 = 4
     cost = 0.4
-    plain, _ = env_rewards(RewardParameters(), actions)
-    priced, instructions = env_rewards(RewardParameters(switch_cost=cost), actions)
+    plain, _ = env_rewards(paper_parameters, paper_parameters.reward, actions)
+    priced, instructions = env_rewards(paper_parameters, dataclasses.replace(paper_parameters.reward,
+                                                                             switch_cost=cost), actions)
     assert instructions == 4
     expected = [p - cost * c for p, c in zip(plain, [1, 0, 1, 1, 0, 1], strict=True)]
     assert priced == pytest.approx(expected, abs=1e-6)

@@ -2,23 +2,31 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
 import torch
 
 from agrl.core.aircraft import AircraftLimits
-from agrl.core.parameters import ManeuverLoadFactors
-from agrl.core.simulation import DecisionSimulator, SimulationParameters
-from agrl.core.termination import Outcome, SuccessTolerance
-
-CONTROLS = ManeuverLoadFactors().controls()
+from agrl.core.simulation import DecisionSimulator
+from agrl.core.termination import Outcome
 
 
-def random_batch(count: int, seed: int, near: int = 4):
+@pytest.fixture(scope="module")
+def simulation(paper_parameters):
+    """conf/simulation/paper.yaml's simulation (20 ms steps, 3 s decisions)."""
+    return paper_parameters.simulation
+
+
+@pytest.fixture(scope="module")
+def controls(paper_parameters):
+    return paper_parameters.maneuvers.controls()
+
+
+def random_batch(count: int, seed: int, limits: AircraftLimits, near: int = 4):
     generator = torch.Generator().manual_seed(seed)
     u = lambda *shape: torch.rand(*shape, generator=generator)  # noqa: E731
-    limits = AircraftLimits()
     aircraft = torch.stack(
         (
             u(count) * 18_000 - 9_000,
@@ -60,22 +68,22 @@ def run(simulator, aircraft, destination, speed, turn_rate, actions_per_decision
     return aircraft, destination, torch.stack(outcomes)
 
 
-def test_substeps_from_decision_period():
-    assert SimulationParameters().substeps == 150
-    assert SimulationParameters(integration_step=0.05, decision_period=1.0).substeps == 20
+def test_substeps_from_decision_period(simulation):
+    assert simulation.substeps == 150
+    assert dataclasses.replace(simulation, integration_step=0.05, decision_period=1.0).substeps == 20
     with pytest.raises(ValueError, match="whole multiple"):
-        _ = SimulationParameters(integration_step=0.07, decision_period=3.0).substeps
+        _ = dataclasses.replace(simulation, integration_step=0.07, decision_period=3.0).substeps
 
 
-def test_compiled_matches_eager():
+def test_compiled_matches_eager(simulation, controls):
     count = 16
-    aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=0)
+    aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=0, limits=simulation.limits)
     actions = [torch.randint(0, 7, (count,), generator=generator) for _ in range(3)]
-    params = SimulationParameters()
+    params = simulation
     eager = run(
-        DecisionSimulator(params, CONTROLS, compile=False), aircraft, destination, speed, turn_rate, actions
+        DecisionSimulator(params, controls, compile=False), aircraft, destination, speed, turn_rate, actions
     )
-    compiled_simulator = DecisionSimulator(params, CONTROLS, compile=True)
+    compiled_simulator = DecisionSimulator(params, controls, compile=True)
     compiled = run(compiled_simulator, aircraft, destination, speed, turn_rate, actions)
     assert compiled_simulator.compiled, "torch.compile fell back to eager"
     assert torch.equal(compiled[2], eager[2])  # outcomes
@@ -85,12 +93,12 @@ def test_compiled_matches_eager():
     torch.testing.assert_close(compiled[0][:, 3:], eager[0][:, 3:], rtol=1e-5, atol=1e-4)  # speeds, angles
 
 
-def test_inactive_rows_are_frozen():
+def test_inactive_rows_are_frozen(simulation, controls):
     count = 8
-    aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=1, near=0)
+    aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=1, limits=simulation.limits, near=0)
     active = torch.tensor([True, False] * 4)
     actions = torch.randint(0, 7, (count,), generator=generator)
-    simulator = DecisionSimulator(SimulationParameters(), CONTROLS, compile=False)
+    simulator = DecisionSimulator(simulation, controls, compile=False)
     result = simulator(aircraft, destination, speed + 20, turn_rate, actions, active=active)
     frozen = ~active
     # Inactive rows: every field unchanged (headings were already wrapped) and no outcome.
@@ -104,9 +112,9 @@ def test_inactive_rows_are_frozen():
     assert torch.all(dest_moved > 50)
 
 
-def test_finished_row_freezes_aircraft_and_destination_together():
-    tolerance = SuccessTolerance(distance=300.0)
-    simulator = DecisionSimulator(SimulationParameters(tolerance=tolerance), CONTROLS, compile=False)
+def test_finished_row_freezes_aircraft_and_destination_together(simulation, controls):
+    tolerance = dataclasses.replace(simulation.tolerance, distance=300.0)
+    simulator = DecisionSimulator(dataclasses.replace(simulation, tolerance=tolerance), controls, compile=False)
     aircraft = torch.tensor(
         [[-400.0, 0.0, 1_000.0, 250.0, 0.0, 0.0, 0.0], [-4_000.0, 0.0, 1_000.0, 250.0, 0.0, 0.0, 0.0]]
     )
@@ -123,8 +131,8 @@ def test_finished_row_freezes_aircraft_and_destination_together():
     assert float(result.destination_state[1, 0]) == pytest.approx(60.0, abs=1e-3)
 
 
-def test_headings_are_wrapped():
-    simulator = DecisionSimulator(SimulationParameters(), CONTROLS, compile=False)
+def test_headings_are_wrapped(simulation, controls):
+    simulator = DecisionSimulator(simulation, controls, compile=False)
     aircraft = torch.tensor([[0.0, 0.0, 2_000.0, 100.0, 0.0, math.pi - 0.01, 0.0]])
     destination = torch.tensor([[5_000.0, 5_000.0, 0.0, math.pi - 0.01]])
     result = simulator(aircraft, destination, torch.tensor([20.0]), torch.tensor([0.05]), torch.tensor([1]))
@@ -133,15 +141,16 @@ def test_headings_are_wrapped():
         assert float(heading) < 0  # crossed +pi and came back as a negative angle
 
 
-def test_compiled_matches_eager_on_shrinking_batches():
+def test_compiled_matches_eager_on_shrinking_batches(simulation, controls):
     """One compiled simulator fed batches of decreasing size, as the reuse replay does when it drops finished
     episodes (new shapes recompile or go dynamic). Tolerances as above: float32 sums of 150 steps in another
     order differ by at most 1e-2 m in position and 1e-4 in speed (m/s) and angles (rad); outcomes exactly."""
-    params = SimulationParameters()
-    compiled_simulator = DecisionSimulator(params, CONTROLS, compile=True)
-    eager_simulator = DecisionSimulator(params, CONTROLS, compile=False)
+    params = simulation
+    compiled_simulator = DecisionSimulator(params, controls, compile=True)
+    eager_simulator = DecisionSimulator(params, controls, compile=False)
     for count in (64, 37, 5, 1):
-        aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=count, near=min(4, count))
+        aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=count, limits=simulation.limits,
+                                                                   near=min(4, count))
         actions = [torch.randint(0, 7, (count,), generator=generator) for _ in range(2)]
         eager = run(eager_simulator, aircraft, destination, speed, turn_rate, actions)
         compiled = run(compiled_simulator, aircraft, destination, speed, turn_rate, actions)

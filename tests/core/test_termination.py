@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -9,9 +10,9 @@ import torch
 
 from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.reward import RewardParameters
-from agrl.core.simulation import DecisionSimulator, SimulationParameters
-from agrl.core.termination import Airspace, Outcome, SuccessTolerance, is_outside_airspace, is_success
-from agrl.envs import GuidanceEnv, GuidanceParameters, ManeuverLoadFactors
+from agrl.core.simulation import DecisionSimulator
+from agrl.core.termination import Outcome, SuccessTolerance, is_outside_airspace, is_success
+from agrl.envs import GuidanceEnv
 
 TOLERANCE = SuccessTolerance(distance=1_000.0, altitude=200.0, heading=math.radians(30))
 
@@ -70,8 +71,8 @@ def test_is_success_is_batched():
     assert got.tolist() == [True, False, False, False]
 
 
-def test_is_outside_airspace_each_wall():
-    space = Airspace()
+def test_is_outside_airspace_each_wall(paper_parameters):
+    space = paper_parameters.simulation.airspace  # Table 1: 20 km x 20 km x 5 km
     points = [
         ((0.0, 0.0, 2_500.0), False),
         ((10_000.0, 10_000.0, 5_000.0), False),  # the boundary is inside
@@ -88,12 +89,12 @@ def test_is_outside_airspace_each_wall():
     assert got.tolist() == [outside for _, outside in points]
 
 
-def test_success_is_caught_when_passing_through_between_decisions():
+def test_success_is_caught_when_passing_through_between_decisions(paper_parameters):
     # 250 m/s for 3 s = 750 m per decision: from x = -400 m to x = +350 m. Both decision boundaries are
     # outside d_e = 300 m, but the straight path crosses the destination mid-decision.
     tolerance = SuccessTolerance(distance=300.0, altitude=200.0, heading=math.radians(30))
-    params = SimulationParameters(tolerance=tolerance)
-    simulator = DecisionSimulator(params, ManeuverLoadFactors().controls(), compile=False)
+    params = dataclasses.replace(paper_parameters.simulation, tolerance=tolerance)
+    simulator = DecisionSimulator(params, paper_parameters.maneuvers.controls(), compile=False)
     aircraft = torch.tensor([[-400.0, 0.0, 1_000.0, 250.0, 0.0, 0.0, 0.0]])
     dest = torch.tensor([[0.0, 0.0, 1_000.0, 0.0]])
     zero = torch.zeros(1)
@@ -108,8 +109,8 @@ def test_success_is_caught_when_passing_through_between_decisions():
     assert success((x, 0.0, 1_000.0, 0.0), (0.0, 0.0, 1_000.0, 0.0), tolerance)
 
 
-def test_out_of_airspace_is_detected_mid_decision_and_frozen():
-    simulator = DecisionSimulator(SimulationParameters(), ManeuverLoadFactors().controls(), compile=False)
+def test_out_of_airspace_is_detected_mid_decision_and_frozen(paper_parameters):
+    simulator = DecisionSimulator(paper_parameters.simulation, paper_parameters.maneuvers.controls(), compile=False)
     aircraft = torch.tensor(
         [
             [9_800.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0],  # leaves through +x
@@ -145,8 +146,8 @@ def step(env, td, action: int):
     return env.step(td)
 
 
-def test_env_out_of_airspace_ends_episode_with_c2_plus_shaping():
-    params = GuidanceParameters(compile=False)
+def test_env_out_of_airspace_ends_episode_with_c2_plus_shaping(paper_parameters):
+    params = paper_parameters
     env = GuidanceEnv(params, num_envs=1, seed=0)
     start = [9_800.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0]
     td = env.reset(env.scenario(aircraft_state=torch.tensor(start)))
@@ -160,8 +161,8 @@ def test_env_out_of_airspace_ends_episode_with_c2_plus_shaping():
     assert float(nxt["reward"]) == pytest.approx(expected, abs=1e-5)
 
 
-def test_env_budget_exhaustion_gives_c3():
-    params = GuidanceParameters(max_decisions=2, compile=False)
+def test_env_budget_exhaustion_gives_c3(paper_parameters):
+    params = dataclasses.replace(paper_parameters, max_decisions=2)
     env = GuidanceEnv(params, num_envs=1, seed=0)
     start = [-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0]
     td = env.reset(env.scenario(aircraft_state=torch.tensor(start)))
@@ -183,8 +184,8 @@ def test_env_budget_exhaustion_gives_c3():
     assert float(second["reward"]) == pytest.approx(reward.budget_exhausted - phi1, abs=1e-5)
 
 
-def test_env_airspace_exit_on_last_decision_is_not_budget_exhaustion():
-    env = GuidanceEnv(GuidanceParameters(max_decisions=1, compile=False), num_envs=2, seed=0)
+def test_env_airspace_exit_on_last_decision_is_not_budget_exhaustion(paper_parameters):
+    env = GuidanceEnv(dataclasses.replace(paper_parameters, max_decisions=1), num_envs=2, seed=0)
     start = torch.tensor(
         [[9_800.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0], [-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0]]
     )
@@ -193,8 +194,8 @@ def test_env_airspace_exit_on_last_decision_is_not_budget_exhaustion():
     assert nxt["outcome"].tolist() == [Outcome.OUT_OF_AIRSPACE, Outcome.BUDGET_EXHAUSTED]
 
 
-def test_env_success_pays_c1():
-    params = GuidanceParameters(compile=False)
+def test_env_success_pays_c1(paper_parameters):
+    params = paper_parameters
     env = GuidanceEnv(params, num_envs=1, seed=0)
     # Flying straight at the fixed destination (0, 0, 0, 0) at 100 m altitude: inside d_e within 3 s.
     start = [-1_200.0, 0.0, 100.0, 200.0, 0.0, 0.0, 0.0]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -12,16 +13,25 @@ from torchrl.envs.utils import check_env_specs
 
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
 from agrl.core.parameters import DestinationMotion
-from agrl.core.reward import RewardParameters
 from agrl.core.termination import Outcome
 from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
 from agrl.envs.guidance import REWARD_PART_KEYS, STATE_KEYS
 
 
-def make_params(kind: MotionKind = MotionKind.FIXED, **overrides) -> GuidanceParameters:
-    destination = DestinationMotion(kind=kind, speed=20.0, radius=500.0)
-    overrides.setdefault("compile", False)
-    return GuidanceParameters(destination=destination, **overrides)
+@pytest.fixture(scope="module")
+def make_params(paper_parameters, compose_parameters):
+    """``make_params(kind, **changes)``: conf's parameters (reward=both) with a destination of ``kind`` (uniform
+    and curved at 20 m/s, curved on a 500 m radius; irregular as conf/task/irregular.yaml) and ``changes``."""
+    irregular = compose_parameters("task=irregular", "reward=both").destination
+
+    def make(kind: MotionKind = MotionKind.FIXED, **changes) -> GuidanceParameters:
+        if kind is MotionKind.IRREGULAR:
+            destination = irregular
+        else:
+            destination = DestinationMotion(kind=kind, speed=20.0, radius=500.0, turn_direction=1.0)
+        return dataclasses.replace(paper_parameters, destination=destination, **changes)
+
+    return make
 
 
 def cycling_policy(td: TensorDict) -> TensorDict:
@@ -36,7 +46,7 @@ def assert_same(a: TensorDict, b: TensorDict, keys) -> None:
 
 
 @pytest.mark.parametrize("kind", list(MotionKind))
-def test_check_env_specs(kind):
+def test_check_env_specs(kind, make_params):
     env = GuidanceEnv(make_params(kind), num_envs=2, seed=0)
     check_env_specs(env)
     td = env.reset()
@@ -46,12 +56,13 @@ def test_check_env_specs(kind):
 
 
 @pytest.mark.parametrize(
-    "kind,reward",
-    [*((kind, RewardParameters(switch_cost=0.3)) for kind in MotionKind),
-     (MotionKind.FIXED, RewardParameters(use_continuous_action=False, use_position=False, switch_cost=0.3)),
-     (MotionKind.FIXED, RewardParameters(switch_cost=1.5, gamma=0.9, use_position=False))],
+    "kind,reward_changes",
+    [*((kind, {"switch_cost": 0.3}) for kind in MotionKind),
+     (MotionKind.FIXED, {"use_continuous_action": False, "use_position": False, "switch_cost": 0.3}),
+     (MotionKind.FIXED, {"switch_cost": 1.5, "gamma": 0.9, "use_position": False})],
 )
-def test_reward_parts_sum_to_the_reward(kind, reward):
+def test_reward_parts_sum_to_the_reward(kind, reward_changes, paper_parameters, make_params):
+    reward = dataclasses.replace(paper_parameters.reward, **reward_changes)
     env = GuidanceEnv(make_params(kind, reward=reward, max_decisions=8), num_envs=6, seed=3)
     td = env.rollout(20, policy=cycling_policy, break_when_any_done=False)
     step = td["next"]
@@ -70,12 +81,12 @@ def test_reward_parts_sum_to_the_reward(kind, reward):
         assert bool((parts[key] != 0).any()) == used, key
 
 
-def test_rejects_an_empty_decision_budget():
+def test_rejects_an_empty_decision_budget(make_params):
     with pytest.raises(ValueError, match="max_decisions"):
         GuidanceEnv(make_params(max_decisions=0), num_envs=1, seed=0)
 
 
-def test_observation_matches_the_state():
+def test_observation_matches_the_state(make_params):
     env = GuidanceEnv(make_params(MotionKind.CURVED), num_envs=3, seed=1)
     td = env.rollout(3, policy=cycling_policy, break_when_any_done=False)
     for sub in (td, td["next"]):
@@ -89,7 +100,7 @@ def test_observation_matches_the_state():
         torch.testing.assert_close(sub["observation"], expected)
 
 
-def test_bookkeeping_counters():
+def test_bookkeeping_counters(make_params):
     env = GuidanceEnv(make_params(), num_envs=1, seed=0)
     td = env.reset(env.scenario(aircraft_state=torch.tensor([-5_000.0, 0.0, 2_500.0, 200.0, 0.0, 0.0, 0.0])))
     rewards = []
@@ -104,7 +115,7 @@ def test_bookkeeping_counters():
     assert float(td["episode_return"]) == pytest.approx(sum(rewards), abs=1e-5)
 
 
-def test_partial_reset_only_changes_masked_rows():
+def test_partial_reset_only_changes_masked_rows(make_params):
     env = GuidanceEnv(make_params(MotionKind.IRREGULAR), num_envs=4, seed=2)
     td = env.reset()
     for _ in range(2):
@@ -127,7 +138,7 @@ def test_partial_reset_only_changes_masked_rows():
     assert not after["done"].any()
 
 
-def test_rollout_auto_resets_done_rows():
+def test_rollout_auto_resets_done_rows(make_params):
     env = GuidanceEnv(make_params(max_decisions=2), num_envs=2, seed=3)
     td = env.rollout(5, policy=cycling_policy, break_when_any_done=False)
     # Budget of 2: done at steps 2 and 4, then fresh episodes.
@@ -138,7 +149,7 @@ def test_rollout_auto_resets_done_rows():
 
 
 @pytest.mark.parametrize("kind", [MotionKind.FIXED, MotionKind.IRREGULAR])
-def test_same_seed_same_rollouts(kind):
+def test_same_seed_same_rollouts(kind, make_params):
     def rollout(seed):
         env = GuidanceEnv(make_params(kind, max_decisions=3), num_envs=3, seed=seed)
         return env.rollout(4, policy=cycling_policy, break_when_any_done=False)
@@ -151,7 +162,7 @@ def test_same_seed_same_rollouts(kind):
         assert not torch.equal(first["destination_speed"], other["destination_speed"])
 
 
-def test_set_seed_restarts_the_stream():
+def test_set_seed_restarts_the_stream(make_params):
     env = GuidanceEnv(make_params(MotionKind.IRREGULAR), num_envs=2, seed=0)
     env.set_seed(11)
     first = env.reset()
@@ -161,7 +172,7 @@ def test_set_seed_restarts_the_stream():
 
 
 @pytest.mark.parametrize("kind", [MotionKind.UNIFORM, MotionKind.CURVED])
-def test_scenario_replay_starts_from_the_given_conditions(kind):
+def test_scenario_replay_starts_from_the_given_conditions(kind, make_params):
     aircraft = torch.tensor(
         [
             [-4_000.0, 1_000.0, 1_500.0, 180.0, 0.1, 0.5, 0.0],
@@ -203,7 +214,7 @@ def test_scenario_replay_starts_from_the_given_conditions(kind):
         assert float(travelled[row]) == pytest.approx(chord, rel=1e-4)
 
 
-def test_scenario_defaults_to_the_task_destination():
+def test_scenario_defaults_to_the_task_destination(make_params):
     env = GuidanceEnv(make_params(MotionKind.CURVED), num_envs=2, seed=0)
     aircraft = torch.tensor([-4_000.0, 1_000.0, 1_500.0, 180.0, 0.0, 0.0, 0.0])
     td = env.reset(env.scenario(aircraft_state=aircraft))
@@ -213,7 +224,7 @@ def test_scenario_defaults_to_the_task_destination():
     assert td["destination_turn_rate"].tolist() == pytest.approx([20.0 / 500.0] * 2)
 
 
-def test_restore_on_next_reset_returns_the_given_state():
+def test_restore_on_next_reset_returns_the_given_state(make_params):
     params = make_params(MotionKind.CURVED)
     env = GuidanceEnv(params, num_envs=3, seed=4)
     td = env.reset()
@@ -236,7 +247,7 @@ def test_restore_on_next_reset_returns_the_given_state():
     assert fresh["step_count"].tolist() == [0, 0, 0]
 
 
-def test_no_future_warnings():
+def test_no_future_warnings(make_params):
     with warnings.catch_warnings():
         warnings.simplefilter("error", FutureWarning)
         env = GuidanceEnv(make_params(MotionKind.UNIFORM, max_decisions=2), num_envs=2, seed=0)
@@ -248,7 +259,7 @@ def test_no_future_warnings():
     assert trajectory["next", "outcome"].shape == (2, 3)
 
 
-def test_outcomes_are_terminal_consistently():
+def test_outcomes_are_terminal_consistently(make_params):
     env = GuidanceEnv(make_params(max_decisions=2), num_envs=4, seed=5)
     td = env.rollout(2, policy=cycling_policy, break_when_any_done=False)
     outcome = td["next", "outcome"]

@@ -23,7 +23,6 @@ from hydra import compose, initialize_config_dir
 import agrl
 from agrl.config import load_config, to_guidance_parameters
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
-from agrl.core.reward import RewardParameters
 from agrl.envs.gym import ENV_ID, GuidanceGymEnv, guidance_parameters
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
@@ -227,7 +226,7 @@ def test_reset_options_start_from_a_scenario():
 
 
 # ---------------------------------------------------------------------------- the MDP
-def test_budget_terminates_with_c3():
+def test_budget_terminates_with_c3(paper_parameters):
     env = _make(task="fixed", max_decisions=3, reward="none")
     env.reset(seed=5)
     rewards = []
@@ -236,12 +235,12 @@ def test_budget_terminates_with_c3():
         rewards.append(reward)
     assert terminated and not truncated
     assert info["outcome"] == "budget_exhausted" and info["step_count"] == 3
-    assert rewards == [0.0, 0.0, RewardParameters().budget_exhausted]  # equation 6's c3, no shaping
+    assert rewards == [0.0, 0.0, paper_parameters.reward.budget_exhausted]  # equation 6's c3, no shaping
     with pytest.raises(RuntimeError, match="reset"):
         env.step(0)  # the episode is over
 
 
-def test_leaving_the_airspace_is_terminal_and_the_last_observation_is_in_bounds():
+def test_leaving_the_airspace_is_terminal_and_the_last_observation_is_in_bounds(paper_parameters):
     env = _make(task="fixed", reward="none").unwrapped
     seed = next(s for s in range(100) if env.reset(seed=s)[1]["aircraft_state"][2] < 1_200.0)  # low start
     observation, info = env.reset(seed=seed)
@@ -251,7 +250,7 @@ def test_leaving_the_airspace_is_terminal_and_the_last_observation_is_in_bounds(
         if terminated:
             break
     assert terminated and info["outcome"] == "out_of_airspace"
-    assert reward == RewardParameters().out_of_airspace
+    assert reward == paper_parameters.reward.out_of_airspace  # equation 6's c2, no shaping
     assert info["aircraft_state"][2] < 0.0
 
 

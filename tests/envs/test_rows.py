@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -9,7 +10,7 @@ import torch
 
 from agrl.core.aircraft import AircraftLimits
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
-from agrl.core.reward import RewardParameters, potential, step_reward, switch_cost_reward
+from agrl.core.reward import potential, step_reward, switch_cost_reward
 from agrl.core.termination import Airspace, Outcome
 from agrl.envs.rows import observation_row, potential_row, step_reward_row
 
@@ -29,8 +30,8 @@ def random_states(count: int, seed: int = 0):
     return aircraft, destination, actions[0], actions[1]
 
 
-def test_observation_row_equals_policy_observation():
-    airspace, limits = Airspace(), AircraftLimits()
+def test_observation_row_equals_policy_observation(paper_parameters):
+    airspace, limits = paper_parameters.simulation.airspace, paper_parameters.simulation.limits
     aircraft, destination, last_action, _ = random_states(500)
     expected = policy_observation(aircraft, destination, last_action, airspace, limits)
     assert expected.dtype == torch.float64 and expected.shape == (500, OBSERVATION_SIZE)
@@ -54,8 +55,9 @@ def test_observation_row_follows_a_different_airspace():
 @pytest.mark.parametrize(("continuous", "position", "switch_cost"),
                          [(True, True, 0.0), (True, False, 0.0), (False, True, 0.0), (False, False, 0.0),
                           (True, True, 0.1)])
-def test_potential_and_reward_rows_equal_the_torch_reward(continuous, position, switch_cost):
-    params = RewardParameters(use_continuous_action=continuous, use_position=position, switch_cost=switch_cost)
+def test_potential_and_reward_rows_equal_the_torch_reward(continuous, position, switch_cost, paper_parameters):
+    params = dataclasses.replace(paper_parameters.reward, use_continuous_action=continuous, use_position=position,
+                                 switch_cost=switch_cost)
     aircraft, destination, last_action, before_last = random_states(200, seed=2)
     before_last[::3] = last_action[::3]  # held actions too (equation 9's c5)
     terminal = torch.arange(200) % 5 == 0

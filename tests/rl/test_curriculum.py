@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 
 from agrl.core.initial_states import scale_distribution
-from agrl.core.parameters import DestinationMotion, GuidanceParameters
-from agrl.rl.curriculum import promoted_scale, start_distribution
+from agrl.rl.curriculum import SharedScaleGuidanceEnv, promoted_scale, shared_scale, start_distribution
 
 
 def test_promotion_steps_up_only_on_enough_success_and_stops_at_one():
@@ -19,9 +20,32 @@ def test_promotion_steps_up_only_on_enough_success_and_stops_at_one():
 
 
 @pytest.mark.parametrize("scale", [0.15, 0.55, 1.0, 1.2])
-def test_start_distribution_is_the_floored_scaled_box_about_the_destination(scale):
-    params = GuidanceParameters(destination=DestinationMotion(start=(1_500.0, -800.0, 0.0, 0.0)), compile=False)
+def test_start_distribution_is_the_floored_scaled_box_about_the_destination(scale, paper_parameters):
+    destination = dataclasses.replace(paper_parameters.destination, start=(1_500.0, -800.0, 0.0, 0.0))
+    params = dataclasses.replace(paper_parameters, destination=destination)
     expected = scale_distribution(params.initial_state, min(scale, 1.0), (1_500.0, -800.0, 0.0),
                                   success_distance=params.simulation.tolerance.distance)
     assert start_distribution(params, scale) == expected
     assert start_distribution(params, scale).min_horizontal_distance >= params.simulation.tolerance.distance
+
+
+def test_an_env_on_a_shared_scale_starts_its_next_episodes_in_the_new_box(paper_parameters):
+    """What each collector worker's env does: it reads the scale tensor at every reset (the trainer writes it)."""
+    scale = shared_scale(0.15)
+    assert scale.is_shared()
+    env = SharedScaleGuidanceEnv(paper_parameters, scale, num_envs=64, seed=0)
+    assert env.params.initial_state == start_distribution(paper_parameters, 0.15)
+    scale.fill_(0.65)
+    assert env.params.initial_state == start_distribution(paper_parameters, 0.15)  # nothing happens until a reset
+    starts = env.reset()["aircraft_state"]
+    box = start_distribution(paper_parameters, 0.65)
+    assert env.params.initial_state == box
+    for column, (low, high) in enumerate((box.x_range, box.y_range, box.z_range)):
+        assert bool(((starts[:, column] >= low - 0.01) & (starts[:, column] <= high + 0.01)).all())
+    small = start_distribution(paper_parameters, 0.15)
+    outside_small = (starts[:, 0] < small.x_range[0]) | (starts[:, 0] > small.x_range[1])
+    assert bool(outside_small.any())
+    # The full box at scale 1, the same as a plain env's.
+    scale.fill_(1.0)
+    env.reset()
+    assert env.params == paper_parameters

@@ -14,6 +14,7 @@ keeps a copy of the full re-played trajectories it receives (the buffer only kee
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -30,9 +31,7 @@ from torchrl.modules import ProbabilisticActor
 from torchrl.objectives.value import GAE
 
 from agrl.core.destinations import DestinationState, move_destination
-from agrl.core.initial_states import InitialStateDistribution
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
-from agrl.core.parameters import DestinationMotion
 from agrl.core.reward import potential, step_reward
 from agrl.core.termination import Outcome
 from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
@@ -53,17 +52,27 @@ ALGORITHM_1 = {"initial_selection_factor": 1.0, "selection_decay": 0.0, "candida
 
 
 # ---------------------------------------------------------------------------- stand-in agents and data
-def params(kind: MotionKind = MotionKind.UNIFORM, start=START,
-           destination_start=(0.0, 0.0, 0.0, 0.0)) -> GuidanceParameters:
-    (x_low, x_high), y, z = start
-    return GuidanceParameters(
-        destination=DestinationMotion(kind=kind, speed=50.0, start=destination_start),
-        initial_state=InitialStateDistribution(
-            x_range=(x_low, x_high), y_range=(y, y), z_range=(z, z), speed_range=(200.0, 200.0)
-        ),
-        max_decisions=BUDGET,
-        compile=False,
-    )
+@pytest.fixture(scope="module")
+def task_params(compose_parameters):
+    """``task_params(kind, start, destination_start)``: conf's task ``kind`` with the paper's reward, the destination
+    at 50 m/s (curved: conf's 1 km counter-clockwise circle; irregular: conf/task/irregular.yaml's redraws),
+    starting at ``destination_start``, the aircraft in the hand-built ``start`` box and a budget of BUDGET."""
+
+    def make(kind: MotionKind = MotionKind.UNIFORM, start=START,
+             destination_start=(0.0, 0.0, 0.0, 0.0)) -> GuidanceParameters:
+        (x_low, x_high), y, z = start
+        task = compose_parameters(f"task={kind.value}", "speed=50", "reward=both")
+        return dataclasses.replace(
+            task,
+            destination=dataclasses.replace(task.destination, start=destination_start),
+            initial_state=dataclasses.replace(
+                task.initial_state, x_range=(x_low, x_high), y_range=(y, y), z_range=(z, z),
+                speed_range=(200.0, 200.0),
+            ),
+            max_decisions=BUDGET,
+        )
+
+    return make
 
 
 class PursuitLogits(torch.nn.Module):
@@ -104,9 +113,9 @@ def baseline_argmax(observation: torch.Tensor) -> torch.Tensor:
 class Collected:
     """One collector batch of agent Z on a hand-built task, with GAE, as the trainer prepares it."""
 
-    def __init__(self, kind: MotionKind, start=START, seed: int = 0, destination_start=(0.0, 0.0, 0.0, 0.0)):
+    def __init__(self, params: GuidanceParameters, seed: int = 0):
         torch.manual_seed(seed)
-        self.env = GuidanceEnv(params(kind, start, destination_start), num_envs=NUM_ENVS, seed=seed)
+        self.env = GuidanceEnv(params, num_envs=NUM_ENVS, seed=seed)
         self.actor = make_actor([32, 32], "tanh")
         self.critic = make_critic([32, 32], "tanh")
         self.gae = GAE(gamma=0.99, lmbda=0.95, value_network=self.critic, average_gae=False)
@@ -137,8 +146,8 @@ class Collected:
 
 
 @pytest.fixture(scope="module")
-def uniform(torch_one_thread) -> Collected:
-    return Collected(MotionKind.UNIFORM)
+def uniform(torch_one_thread, task_params) -> Collected:
+    return Collected(task_params(MotionKind.UNIFORM))
 
 
 class Relabelled:
@@ -164,9 +173,9 @@ def relabelled(uniform) -> Relabelled:
 
 
 @pytest.fixture(scope="module")
-def fixed(torch_one_thread) -> Collected:
+def fixed(torch_one_thread, task_params) -> Collected:
     # 3 km from a fixed destination: flying straight, the baseline arrives at the fourth decision.
-    return Collected(MotionKind.FIXED, start=((-3_000.0, -3_000.0), 0.0, 100.0))
+    return Collected(task_params(MotionKind.FIXED, start=((-3_000.0, -3_000.0), 0.0, 100.0)))
 
 
 def episode_lengths(trajectories: TensorDict) -> torch.Tensor:
@@ -176,10 +185,11 @@ def episode_lengths(trajectories: TensorDict) -> torch.Tensor:
     return done.long().argmax(-1) + 1
 
 
-def replay_in_fresh_env(start: TensorDict, actions: torch.Tensor, kind: MotionKind) -> TensorDict:
-    """An independent rollout: a new env started from ``start``'s scenario, stepping ``actions`` (E, T)."""
+def replay_in_fresh_env(start: TensorDict, actions: torch.Tensor, params: GuidanceParameters) -> TensorDict:
+    """An independent rollout: a new env of ``params`` started from ``start``'s scenario, stepping ``actions``
+    (E, T)."""
     episodes, steps = actions.shape
-    env = GuidanceEnv(params(kind), num_envs=episodes, seed=123)
+    env = GuidanceEnv(params, num_envs=episodes, seed=123)
     td = env.reset(env.scenario(
         aircraft_state=start["aircraft_state"], destination_state=start["destination_state"],
         destination_speed=start["destination_speed"], destination_turn_rate=start["destination_turn_rate"],
@@ -239,7 +249,7 @@ def test_relabelled_tuples_carry_the_real_destination_trajectory(relabelled):
     steps = int(lengths.max())
     actions = trajectories["action"][:, :steps]
 
-    real = replay_in_fresh_env(flat[starts], actions, MotionKind.UNIFORM)
+    real = replay_in_fresh_env(flat[starts], actions, relabelled.collected.env.params)
     for episode in range(starts.numel()):
         length = int(lengths[episode])
         got, want = trajectories[episode, :length], real[episode, :length]
@@ -529,13 +539,14 @@ class SkittishLogits(PursuitLogits):
         return torch.where(near[..., None], pull_up, logits)
 
 
-def brute_force_search(grid: torch.Tensor, starts: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """Each (episode, candidate t_n) on its own row of a fresh env: B steered to the destination's position
-    at t_n, for at most ``t_n + spacing`` decisions. Returns arrival steps ``(E, C)`` (0 = no success) and
-    B's actions ``(E, C, BUDGET)``."""
+def brute_force_search(grid: torch.Tensor, starts: torch.Tensor,
+                       params: GuidanceParameters) -> tuple[torch.Tensor, torch.Tensor]:
+    """Each (episode, candidate t_n) on its own row of a fresh env of ``params``: B steered to the destination's
+    position at t_n, for at most ``t_n + spacing`` decisions. Returns arrival steps ``(E, C)`` (0 = no success)
+    and B's actions ``(E, C, BUDGET)``."""
     episodes, candidates = starts.shape[0], grid.numel()
     spacing = int(grid[1] - grid[0]) if candidates > 1 else 1
-    env = GuidanceEnv(params(), num_envs=episodes * candidates, seed=11)
+    env = GuidanceEnv(params, num_envs=episodes * candidates, seed=11)
     td = env.reset(env.scenario(aircraft_state=starts.repeat_interleave(candidates, 0)))
     target = torch.zeros(episodes * candidates, 4)
     target[:, 0] = STEP * grid.float().repeat(episodes)
@@ -566,14 +577,14 @@ def test_search_keeps_the_earliest_or_latest_successful_candidate(uniform, keep,
     transform = uniform.transform(as_actor(SkittishLogits()), keep=keep, candidate_stride=stride,
                                   max_candidates=cap)
     aircraft = torch.tensor([[x, 0.0, 100.0, 200.0, 0.0, 0.0, 0.0] for x in (-6_000.0, -5_000.0, -4_000.0)])
-    env = GuidanceEnv(params(), num_envs=aircraft.shape[0], seed=0)
+    env = GuidanceEnv(uniform.env.params, num_envs=aircraft.shape[0], seed=0)
     start_rows = env.reset(env.scenario(aircraft_state=aircraft))
     trajectory = torch.zeros(aircraft.shape[0], BUDGET + 1, 4)
     trajectory[..., 0] = STEP * torch.arange(BUDGET + 1, dtype=torch.float32)
     motion = torch.tensor([50.0, 0.0]).expand(aircraft.shape[0], BUDGET, 2)
     arrival, winner = transform._search(start_rows, trajectory, motion)
 
-    brute, _ = brute_force_search(transform.candidates, aircraft)
+    brute, _ = brute_force_search(transform.candidates, aircraft, uniform.env.params)
     for episode in range(aircraft.shape[0]):
         succeeded = (brute[episode] > 0).nonzero().squeeze(-1)
         assert 2 <= succeeded.numel() < transform.candidates.numel(), "some candidates succeed, not all"
@@ -644,9 +655,9 @@ class Spanning:
     """Consecutive collector batches of an agent Z that circles left (it never arrives, so its episodes run
     to the budget or leave the airspace), 11 decisions per env each, with GAE as the trainer gives them."""
 
-    def __init__(self, batches: int = 4):
+    def __init__(self, params: GuidanceParameters, batches: int = 4):
         torch.manual_seed(1)
-        self.env = GuidanceEnv(params(), num_envs=NUM_ENVS, seed=1)
+        self.env = GuidanceEnv(params, num_envs=NUM_ENVS, seed=1)
         critic = make_critic([32, 32], "tanh")
         gae = GAE(gamma=0.99, lmbda=0.95, value_network=critic, average_gae=False)
         self.replay_gae = GAE(gamma=0.99, lmbda=0.95, value_network=None, average_gae=False)
@@ -688,8 +699,8 @@ class Spanning:
 
 
 @pytest.fixture(scope="module")
-def spanning(torch_one_thread) -> Spanning:
-    return Spanning()
+def spanning(torch_one_thread, task_params) -> Spanning:
+    return Spanning(task_params(MotionKind.UNIFORM))
 
 
 def test_episodes_spanning_two_and_three_batches_are_relabelled_like_a_brute_force_search(spanning):
@@ -708,7 +719,7 @@ def test_episodes_spanning_two_and_three_batches_are_relabelled_like_a_brute_for
         # Every episode with rows in this batch has a known start (the first batch starts every env afresh).
         episodes = sorted(set(traj_ids.tolist()), key=lambda t: int((traj_ids == t).nonzero()[0, 0]))
         starts = torch.stack([spanning.start_of(t)["aircraft_state"] for t in episodes])
-        arrival, actions = brute_force_search(transform.candidates, starts)
+        arrival, actions = brute_force_search(transform.candidates, starts, spanning.env.params)
         success = arrival > 0
         assert bool(success.any(-1).any()) and not bool(success.all()), "some candidates succeed, not all"
         # Brute force: the earliest successful t_n per episode, its arrival step and B's actions.
@@ -894,11 +905,11 @@ def assert_equal_nested(a, b, where: str) -> None:
         assert a == b, f"{where}: {a!r} != {b!r}"
 
 
-def test_curved_prediction_follows_the_arc_heading_included(torch_one_thread):
+def test_curved_prediction_follows_the_arc_heading_included(torch_one_thread, task_params):
     """A curved destination (50 m/s on a 1 km radius, counter-clockwise from (0, 0) heading +x): recorded and
     extended predictions are the circle x = R sin(wt), y = R (1 - cos wt), heading wt (the heading field is
     predicted too, and it is what the baseline sees)."""
-    collected = Collected(MotionKind.CURVED)
+    collected = Collected(task_params(MotionKind.CURVED))
     flat = collected.flat()
     transform = collected.transform()
     starts = starts_of(flat)
@@ -917,10 +928,10 @@ def test_curved_prediction_follows_the_arc_heading_included(torch_one_thread):
     torch.testing.assert_close(torch.sin(heading), torch.sin(angle), atol=1e-4, rtol=0)
 
 
-def test_prediction_reflects_at_the_airspace_wall(torch_one_thread):
+def test_prediction_reflects_at_the_airspace_wall(torch_one_thread, task_params):
     """A uniform destination starting 500 m from the +x wall: it reaches the wall after 10 s, 3 1/3 decisions,
     then flies back along -x with heading pi (the destination's motion model, beyond each episode too)."""
-    collected = Collected(MotionKind.UNIFORM, destination_start=(9_500.0, 0.0, 0.0, 0.0))
+    collected = Collected(task_params(MotionKind.UNIFORM, destination_start=(9_500.0, 0.0, 0.0, 0.0)))
     flat = collected.flat()
     transform = collected.transform()
     starts = starts_of(flat)
@@ -955,10 +966,10 @@ def test_baseline_log_prob_is_the_baselines_on_the_predicted_destination(relabel
         torch.testing.assert_close(expected, torch.full_like(expected, 10.0 - math.log(math.exp(10.0) + 6.0)))
 
 
-def test_irregular_prediction_extends_each_episode_with_its_last_speed_and_turn_rate(torch_one_thread):
+def test_irregular_prediction_extends_each_episode_with_its_last_speed_and_turn_rate(torch_one_thread, task_params):
     """Irregular destinations redraw speed and turn rate at random: inside an episode the prediction is the
     recorded track; past its last recorded transition it keeps the last recorded (speed, turn rate)."""
-    collected = Collected(MotionKind.IRREGULAR, seed=3)
+    collected = Collected(task_params(MotionKind.IRREGULAR), seed=3)
     flat = collected.flat()
     transform = collected.transform()
     starts = starts_of(flat)

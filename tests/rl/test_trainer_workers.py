@@ -63,3 +63,48 @@ def test_a_worker_run_learns(tmp_path, run_cli):
     final = json.loads((run_dir / "eval" / "eval.json").read_text())
     print({"before": before, "final": final["success_rate"], "seconds": final["training_wall_time_s"]})
     assert final["success_rate"] >= before + 0.2, (before, final)
+
+
+def fresh_starts(batch, skip_first_column: bool) -> torch.Tensor:
+    """Aircraft states of the rows where an episode starts (step count 0); ``skip_first_column`` leaves out the
+    first row of each env, which the previous batch's last step may already have reset."""
+    fresh = batch["step_count"].squeeze(-1) == 0
+    if skip_first_column:
+        fresh[:, 0] = False
+    return batch["aircraft_state"][fresh]
+
+
+def inside_box(states: torch.Tensor, box, scale: float) -> torch.Tensor:
+    """Rows of ``states`` inside conf's start box shrunk by ``scale`` towards a destination at the origin: the
+    horizontal bounds scale about 0, the altitude band from its floor (agrl.core.initial_states)."""
+    slack = 0.01  # m: float32 draws on the box's edge
+    x, y, z = states[:, 0], states[:, 1], states[:, 2]
+    (x_low, x_high), (y_low, y_high), (z_low, z_high) = box.x_range, box.y_range, box.z_range
+    return ((x >= scale * x_low - slack) & (x <= scale * x_high + slack) & (y >= scale * y_low - slack)
+            & (y <= scale * y_high + slack) & (z >= z_low - slack) & (z <= z_low + scale * (z_high - z_low) + slack))
+
+
+@pytest.mark.slow  # two spawned worker processes import torch and torchrl: about 25 s on a loaded 2-core machine
+def test_a_curriculum_promotion_reaches_the_workers_next_resets(tmp_path, compose_train, tiny_args):
+    """The workers' new episodes start in the trainer's current box: the initial box in the first batch, the
+    promoted box in the batch after a promotion (episodes of 3 decisions: about 150 starts per batch)."""
+    cfg = compose_train(*tiny_args({"ppo.collector_workers": "2", "curriculum.enabled": "true",
+                                    "curriculum.initial_scale": "0.15", "curriculum.scale_step": "0.5",
+                                    "simulation.max_decisions": "3"}))
+    assert cfg.simulation.initial_state.x_range[0] < 0 < cfg.simulation.initial_state.x_range[1]
+    trainer = Trainer(cfg, tmp_path / "run")
+    try:
+        batches = iter(trainer.collector)
+        first = next(batches)
+        trainer._advance_curriculum({"train/success_rate": 1.0})  # as after an iteration that earned a promotion
+        assert trainer.counters.curriculum_scale == pytest.approx(0.65)
+        second = next(batches)
+    finally:
+        trainer.collector.shutdown()
+    box = cfg.simulation.initial_state
+    before = fresh_starts(first, skip_first_column=False)
+    assert before.shape[0] >= 100 and bool(inside_box(before, box, 0.15).all())
+    after = fresh_starts(second, skip_first_column=True)
+    assert after.shape[0] >= 100 and bool(inside_box(after, box, 0.65).all())
+    # Not still the old box: most of the new box lies outside it.
+    assert float((~inside_box(after, box, 0.15)).float().mean()) > 0.5
