@@ -51,6 +51,7 @@ from agrl.envs.rows import observation_row, potential_row, step_reward_row
 from agrl.reference import reference_decision
 
 ENV_ID = "agrl/Guidance-v0"
+_OUTCOME_NAMES = tuple(outcome.name.lower() for outcome in Outcome)  # indexed by the Outcome code
 
 #: The destination parameters each task takes (their defaults live in conf/task/*.yaml, nowhere else).
 TASK_PARAMETERS: dict[str, tuple[str, ...]] = {
@@ -243,7 +244,7 @@ class GuidanceGymEnv(gymnasium.Env):
 
     def _info(self) -> dict[str, Any]:
         return {
-            "outcome": Outcome(self._outcome).name.lower(),
+            "outcome": _OUTCOME_NAMES[self._outcome],
             "aircraft_state": np.array(self._aircraft),
             "destination_state": np.array(self._destination),
             "step_count": self._step_count,
@@ -279,6 +280,7 @@ class GuidanceGymEnv(gymnasium.Env):
         self._episode_return = 0.0
         self._outcome = int(Outcome.RUNNING)
         self._running = True
+        self._potential_now = self._potential(False)  # the next step's potential before (Phi of equation 8)
         if self.render_mode is not None:
             self._aircraft_path, self._destination_path = [self._aircraft], [self._destination]
             if self.render_mode == "human":
@@ -303,7 +305,7 @@ class GuidanceGymEnv(gymnasium.Env):
                 motion.change_probability, motion.speed_range, motion.max_turn_rate, self.env.generator,
             )
             self._destination_speed, self._destination_turn_rate = float(speed[0]), float(turn_rate[0])
-        potential_before = self._potential(False)
+        potential_before = self._potential_now  # the state has not changed since it was computed
         result = reference_decision(self._aircraft, self._destination, self._destination_speed,
                                     self._destination_turn_rate, action, self.params.simulation,
                                     self.params.maneuvers)
@@ -317,8 +319,8 @@ class GuidanceGymEnv(gymnasium.Env):
         self._instruction_count += int(switched)
         self._aircraft, self._destination, self._outcome = result.aircraft_state, result.destination_state, outcome
         self._action_before_last, self._last_action = self._last_action, action
-        reward = step_reward_row(outcome, potential_before, self._potential(terminated), self.params.reward,
-                                 switched)
+        self._potential_now = self._potential(terminated)
+        reward = step_reward_row(outcome, potential_before, self._potential_now, self.params.reward, switched)
         self._episode_return += reward
         self._running = not terminated
         if self.render_mode is not None:

@@ -29,6 +29,8 @@ from agrl.core.termination import Airspace, Outcome
 from agrl.reference import wrap_angle
 
 NUM_MANEUVERS = len(MANEUVER_NAMES)
+_RUNNING, _SUCCESS, _OUT_OF_AIRSPACE, _BUDGET_EXHAUSTED = (int(outcome) for outcome in (
+    Outcome.RUNNING, Outcome.SUCCESS, Outcome.OUT_OF_AIRSPACE, Outcome.BUDGET_EXHAUSTED))
 
 
 def observation_row(
@@ -103,10 +105,17 @@ def step_reward_row(outcome: int, potential_before: float, potential_after: floa
                     switched: bool = False) -> float:
     """:func:`agrl.core.reward.step_reward` (equations 5-7) plus :func:`agrl.core.reward.switch_cost_reward`
     (``switched``: this decision changed the maneuver being flown) for one row."""
-    termination = {
-        Outcome.SUCCESS: params.success,
-        Outcome.OUT_OF_AIRSPACE: params.out_of_airspace,
-        Outcome.BUDGET_EXHAUSTED: params.budget_exhausted,
-    }.get(Outcome(outcome), 0.0)
+    # Plain int comparisons: the single gymnasium env calls this at every decision.
+    if outcome == _RUNNING:
+        termination = 0.0
+    elif outcome == _SUCCESS:
+        termination = params.success
+    elif outcome == _OUT_OF_AIRSPACE:
+        termination = params.out_of_airspace
+    elif outcome == _BUDGET_EXHAUSTED:
+        termination = params.budget_exhausted
+    else:
+        allowed = ", ".join(f"{code.value} ({code.name})" for code in Outcome)
+        raise ValueError(f"outcome={outcome!r} is not allowed: one of {allowed}")
     switch_cost = -params.switch_cost if switched else 0.0
     return termination + params.gamma * potential_after - potential_before + switch_cost
