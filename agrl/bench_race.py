@@ -13,11 +13,14 @@ its budget, or (unless ``--full-budget``) once an evaluation reaches the last ``
 agrl's side is :class:`agrl.rl.trainer.Trainer`, the one ``python -m agrl.train`` runs, with the project's
 defaults (``conf/``: curriculum on, 512 envs x 64 decisions, ...) plus ``--agrl-override`` Hydra overrides; only
 its stopping rule and its periodic evaluation are the race's. stable-baselines3 (the ``bench`` extra) trains
-``PPO("MlpPolicy", env)`` on the gymnasium vector env (:mod:`agrl.envs.gym_vector`, same-step autoreset, through
-:func:`agrl.bench_peer.make_sb3_vector_env`) with ``--sb3-num-envs`` rows and, for ``--sb3-geometry sb3`` (the
-default), every other setting at stable-baselines3's own PPO defaults (2048 steps per env per rollout,
+``PPO("MlpPolicy", env)`` on ``--sb3-num-envs`` gym envs and, for ``--sb3-geometry sb3`` (the default), every
+other setting at stable-baselines3's own PPO defaults (2048 steps per env per rollout,
 minibatch 64, 10 epochs, learning rate 3e-4, gamma 0.99, GAE lambda 0.95, clip 0.2, no entropy bonus, value
-coefficient 0.5, gradient norm 0.5, 64-64 tanh networks): what a user writes. ``--sb3-geometry agrl`` takes
+coefficient 0.5, gradient norm 0.5, 64-64 tanh networks): what a user writes. The envs are
+``make_vec_env("agrl/Guidance-v0", n_envs)`` (``--sb3-env single``: one Python-float env per row, the faster form
+for a few rows) or the batched gym vector env (``--sb3-env vector``: :mod:`agrl.envs.gym_vector`, same-step
+autoreset, through :func:`agrl.bench_peer.make_sb3_vector_env`; the default with ``--sb3-geometry agrl``).
+``--sb3-geometry agrl`` takes
 agrl's composed config instead (``ppo.num_envs`` rows, ``ppo.steps_per_env``, minibatch, epochs, learning
 rate, reward gamma, GAE lambda, clip, entropy and value coefficients, gradient norm, network sizes and
 activation), the geometry of ``python -m agrl.bench_peer``, with no curriculum.
@@ -103,12 +106,13 @@ class RaceEvaluation:
         """Fly the evaluation set (the training clock stands still meanwhile); one ``race_evaluation`` line."""
         from agrl.rl.evaluation import run_episodes, summarise
 
+        training_seconds = self.clock.seconds  # before the pause: the evaluation's own time is not training
         with self.clock.paused():
             begin = time.perf_counter()
             self.env.set_seed(self.seed)  # the same episodes every time, for both trainers
             summary = summarise(run_episodes(self.env, actor))
             record = {"name": "race_evaluation", "trainer": trainer, "value": summary["success_rate"],
-                      "unit": "success rate", "training_seconds": round(self.clock.seconds, 2),
+                      "unit": "success rate", "training_seconds": round(training_seconds, 2),
                       "decisions": int(decisions), "success_rate": summary["success_rate"],
                       "decisions_per_episode": summary["decisions_per_episode"],
                       "instructions_per_episode": summary["instructions_per_episode"], "final": final,
@@ -160,8 +164,8 @@ def race_agrl(args, evaluation: RaceEvaluation, clock: TrainingClock) -> dict:
         next_evaluation = 0.0
 
         def _evaluation_due(self) -> bool:
-            if clock.seconds < self.next_evaluation:
-                return False
+            if clock.seconds < self.next_evaluation or clock.seconds >= args.budget_seconds:
+                return False  # (at the end of the budget the final evaluation follows)
             self.next_evaluation = clock.seconds + args.eval_every
             return True
 
@@ -227,15 +231,22 @@ def race_sb3(args, evaluation: RaceEvaluation, clock: TrainingClock) -> dict:
         next_evaluation = 0.0
 
         def _on_step(self) -> bool:
+            if clock.seconds >= args.budget_seconds:
+                return False  # the final evaluation follows
             if clock.seconds >= self.next_evaluation:
                 evaluation("stable-baselines3", actor, self.model.num_timesteps)
                 self.next_evaluation = clock.seconds + args.eval_every
-            if clock.seconds >= args.budget_seconds:
-                return False
             return args.full_budget or not evaluation.reached_last_target("stable-baselines3")
 
     clock.start()
-    env = make_sb3_vector_env(num_envs, args.compile, args.seed, **task)
+    if args.sb3_env == "single":  # what a stable-baselines3 user writes: one Python-float gym env per row
+        from stable_baselines3.common.env_util import make_vec_env
+
+        import agrl
+
+        env = make_vec_env(agrl.GYM_ENV_ID, n_envs=num_envs, seed=args.seed, env_kwargs=task)
+    else:
+        env = make_sb3_vector_env(num_envs, args.compile, args.seed, **task)
     model = PPO("MlpPolicy", env, seed=args.seed, device="cpu", verbose=0, **kwargs)
     actor = Sb3Actor(model)
     callback = RaceCallback()
@@ -248,8 +259,8 @@ def race_sb3(args, evaluation: RaceEvaluation, clock: TrainingClock) -> dict:
                 "learning_rate": model.learning_rate, "gamma": model.gamma, "gae_lambda": model.gae_lambda,
                 "ent_coef": model.ent_coef, "vf_coef": model.vf_coef, "max_grad_norm": model.max_grad_norm,
                 "net_arch": str(model.policy.net_arch), "activation_fn": model.policy.activation_fn.__name__}
-    return evaluation.result("stable-baselines3", {"geometry": args.sb3_geometry, "num_envs": num_envs,
-                                                   "compile": args.compile, **defaults})
+    return evaluation.result("stable-baselines3", {"geometry": args.sb3_geometry, "env": args.sb3_env,
+                                                   "num_envs": num_envs, "compile": args.compile, **defaults})
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
@@ -270,6 +281,10 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                              "epochs, rates, networks)")
     parser.add_argument("--sb3-num-envs", type=int, default=8,
                         help="vector-env rows for --sb3-geometry sb3 (default 8)")
+    parser.add_argument("--sb3-env", choices=("single", "vector"), default=None,
+                        help="single: make_vec_env('agrl/Guidance-v0', n_envs) (DummyVecEnv of Python-float envs; "
+                             "the default for --sb3-geometry sb3); vector: the batched gym vector env (the default "
+                             "for --sb3-geometry agrl)")
     parser.add_argument("--agrl-override", nargs="*", default=[], metavar="KEY=VALUE",
                         help="Hydra overrides of agrl's training config (e.g. ppo.num_envs=256)")
     parser.add_argument("--compile", action=argparse.BooleanOptionalAction, default=True,
@@ -277,6 +292,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--threads", type=int, default=None, help="torch threads (default torch's)")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
+    args.sb3_env = args.sb3_env or ("single" if args.sb3_geometry == "sb3" else "vector")
     for name in ("budget_seconds", "eval_every", "eval_episodes", "sb3_num_envs"):
         if not getattr(args, name) > 0:
             parser.error(f"--{name.replace('_', '-')}={getattr(args, name)} is not allowed: a positive number")

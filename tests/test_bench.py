@@ -158,3 +158,15 @@ def test_race_result_reports_when_each_target_was_first_reached():
     assert result["final_success_rate"] == 1.0 and result["evaluations"] == 5
     assert result["decisions_per_second"] == 10.0  # 400 decisions in 40 s
     assert evaluation.reached_last_target("agrl") and not evaluation.reached_last_target("stable-baselines3")
+
+
+def test_race_arguments():
+    from agrl.bench_race import parse_args
+
+    default = parse_args([])
+    assert default.sb3_geometry == "sb3" and default.sb3_env == "single" and default.targets == [0.95, 0.99]
+    assert parse_args(["--sb3-geometry", "agrl"]).sb3_env == "vector"
+    for bad in (["--budget-seconds", "0"], ["--targets", "0.99", "0.95"], ["--targets", "1.5"], ["--eval-every", "-1"],
+                ["--sb3-env", "subprocess"], ["--max-decisions", "0"]):
+        with pytest.raises(SystemExit):
+            parse_args(bad)
