@@ -40,6 +40,7 @@ import argparse
 import contextlib
 import dataclasses
 import json
+import logging
 import os
 import sys
 import tempfile
@@ -260,7 +261,8 @@ def race_sb3(args, evaluation: RaceEvaluation, clock: TrainingClock) -> dict:
                 "ent_coef": model.ent_coef, "vf_coef": model.vf_coef, "max_grad_norm": model.max_grad_norm,
                 "net_arch": str(model.policy.net_arch), "activation_fn": model.policy.activation_fn.__name__}
     return evaluation.result("stable-baselines3", {"geometry": args.sb3_geometry, "env": args.sb3_env,
-                                                   "num_envs": num_envs, "compile": args.compile, **defaults})
+                                                   "num_envs": num_envs,
+                                                   "compile": args.compile and args.sb3_env == "vector", **defaults})
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
@@ -318,6 +320,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     if args.threads is not None:
         torch.set_num_threads(args.threads)
+    logging.getLogger("torchrl").setLevel(logging.WARNING)  # its INFO notes go to stdout, between the JSON lines
 
     def emit(record: dict) -> None:
         print(json.dumps(record), flush=True)

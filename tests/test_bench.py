@@ -115,7 +115,7 @@ def test_race_prints_both_trainers_evaluations_and_results():
                "ppo.minibatch_size=32"]
     completed = subprocess.run(command, capture_output=True, text=True, timeout=600)
     assert completed.returncode == 0, completed.stderr
-    records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
+    records = [json.loads(line) for line in completed.stdout.splitlines() if line.strip()]  # JSON lines only
     assert all(REQUIRED <= set(record) for record in records)
     assert records[-1]["name"] == "race_summary"
     results = {record["trainer"]: record for record in records if record["name"] == "race_result"}
