@@ -325,10 +325,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     def emit(record: dict) -> None:
         print(json.dumps(record), flush=True)
 
+    from hydra.errors import HydraException
+
     try:
         config = agrl_config(args)
-    except ConfigError as error:
-        raise SystemExit(f"agrl.bench_race: error: {error}") from None
+    except (ConfigError, HydraException) as error:  # a bad --agrl-override: one line, not Hydra's traceback
+        raise SystemExit(f"agrl.bench_race: error: {str(error).splitlines()[0]}") from None
     # One task for both: the gym env's parameters must be those agrl trains on (overrides may not change them).
     params = guidance_parameters(task=args.task, max_decisions=args.max_decisions, compile=args.compile)
     trained = to_guidance_parameters(config.task, config.reward, config.simulation)
