@@ -105,3 +105,68 @@ def test_peer_benchmark_prints_the_split_for_both_trainers():
     ratio = records[2]
     expected = records[0]["decisions_per_second"] / records[1]["decisions_per_second"]
     assert ratio["value"] == pytest.approx(expected, rel=1e-2) and ratio["threads"] == 1
+
+
+def test_race_prints_both_trainers_evaluations_and_results():
+    """``python -m agrl.bench_race`` with a budget of seconds: both trainers train, both fly the same evaluation set."""
+    command = [sys.executable, "-m", "agrl.bench_race", "--budget-seconds", "2", "--eval-every", "1",
+               "--eval-episodes", "8", "--max-decisions", "4", "--no-compile", "--threads", "1",
+               "--sb3-geometry", "agrl", "--agrl-override", "ppo.num_envs=16", "ppo.steps_per_env=4",
+               "ppo.minibatch_size=32"]
+    completed = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert completed.returncode == 0, completed.stderr
+    records = [json.loads(line) for line in completed.stdout.splitlines() if line.strip()]  # JSON lines only
+    assert all(REQUIRED <= set(record) for record in records)
+    assert records[-1]["name"] == "race_summary"
+    results = {record["trainer"]: record for record in records if record["name"] == "race_result"}
+    assert list(results) == ["agrl", "stable-baselines3"]
+    for trainer, result in results.items():
+        evaluations = [r for r in records if r["name"] == "race_evaluation" and r["trainer"] == trainer]
+        # one at the start (nothing trained yet), one at the end (the final one), none after it
+        assert len(evaluations) >= 2 and evaluations[0]["decisions"] == 0 and not evaluations[0]["final"]
+        assert evaluations[-1]["final"] and [r["final"] for r in evaluations].count(True) == 1
+        assert evaluations[-1]["decisions"] > 0 and evaluations[-1]["training_seconds"] >= 2
+        seconds = [r["training_seconds"] for r in evaluations]
+        assert seconds == sorted(seconds)
+        assert all(0.0 <= r["success_rate"] <= 1.0 and r["decisions_per_episode"] <= 4 for r in evaluations)
+        assert result["evaluations"] == len(evaluations)
+        assert result["final_success_rate"] == evaluations[-1]["success_rate"]
+        assert result["best_success_rate"] == max(r["success_rate"] for r in evaluations)
+        assert result["decisions_per_second"] == pytest.approx(
+            evaluations[-1]["decisions"] / evaluations[-1]["training_seconds"], rel=1e-2)
+        assert {"seconds_to_95", "seconds_to_99", "decisions_to_95", "decisions_to_99"} <= set(result)
+    assert results["stable-baselines3"]["settings"]["n_steps"] == 4  # --sb3-geometry agrl: agrl's geometry
+    assert results["stable-baselines3"]["settings"]["num_envs"] == 16
+    summary = records[-1]
+    assert {"speedup_to_95", "speedup_to_99", "load_average_1min_at_start"} <= set(summary)
+    assert summary["threads"] == 1 and summary["eval_episodes"] == 8
+
+
+def test_race_result_reports_when_each_target_was_first_reached():
+    from agrl.bench_race import RaceEvaluation, TrainingClock
+    from agrl.envs.gym import guidance_parameters
+
+    evaluation = RaceEvaluation(guidance_parameters(), episodes=2, seed=0, clock=TrainingClock(),
+                                targets=(0.95, 0.99), emit=lambda record: None)
+    rates = [(0.0, 0.1, 0), (10.0, 0.96, 100), (20.0, 0.9, 200), (30.0, 0.995, 300), (40.0, 1.0, 400)]
+    evaluation.history = [{"trainer": "agrl", "training_seconds": s, "success_rate": r, "decisions": d}
+                          for s, r, d in rates]
+    evaluation.history.insert(2, {"trainer": "other", "training_seconds": 15.0, "success_rate": 1.0, "decisions": 9})
+    result = evaluation.result("agrl", settings={})
+    assert result["seconds_to_95"] == 10.0 and result["decisions_to_95"] == 100
+    assert result["seconds_to_99"] == 30.0 and result["decisions_to_99"] == 300
+    assert result["final_success_rate"] == 1.0 and result["evaluations"] == 5
+    assert result["decisions_per_second"] == 10.0  # 400 decisions in 40 s
+    assert evaluation.reached_last_target("agrl") and not evaluation.reached_last_target("stable-baselines3")
+
+
+def test_race_arguments():
+    from agrl.bench_race import parse_args
+
+    default = parse_args([])
+    assert default.sb3_geometry == "sb3" and default.sb3_env == "single" and default.targets == [0.95, 0.99]
+    assert parse_args(["--sb3-geometry", "agrl"]).sb3_env == "vector"
+    for bad in (["--budget-seconds", "0"], ["--targets", "0.99", "0.95"], ["--targets", "1.5"], ["--eval-every", "-1"],
+                ["--sb3-env", "subprocess"], ["--max-decisions", "0"]):
+        with pytest.raises(SystemExit):
+            parse_args(bad)

@@ -43,15 +43,15 @@ from agrl.config import ConfigError, config_options
 from agrl.config import guidance_parameters as composed_guidance_parameters
 from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.destinations import redraw_irregular_motion
-from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.observation import OBSERVATION_FEATURES, OBSERVATION_SIZE
 from agrl.core.parameters import GuidanceParameters, MotionKind
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import NUM_ACTIONS, SCENARIO_KEYS, GuidanceEnv
-from agrl.envs.rows import observation_row, potential_row, step_reward_row
+from agrl.envs.rows import initial_aircraft_row, observation_row, potential_row, step_reward_row
 from agrl.reference import reference_decision
 
 ENV_ID = "agrl/Guidance-v0"
+_OUTCOME_NAMES = tuple(outcome.name.lower() for outcome in Outcome)  # indexed by the Outcome code
 
 #: The destination parameters each task takes (their defaults live in conf/task/*.yaml, nowhere else).
 TASK_PARAMETERS: dict[str, tuple[str, ...]] = {
@@ -229,6 +229,13 @@ class GuidanceGymEnv(gymnasium.Env):
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self.maneuver_names = MANEUVER_NAMES
         self._irregular = self.params.destination.kind is MotionKind.IRREGULAR
+        # The destination's start and (but for irregular motion) its speed and turn rate, rounded to float32
+        # as GuidanceEnv holds them.
+        self._start = tuple(torch.tensor(self.params.destination.start).tolist())
+        self._start_motion = (0.0, 0.0)
+        if not self._irregular:  # (irregular motion draws, from the global generator without one)
+            speed, turn_rate = self.params.destination.initial_motion(1, None, "cpu")
+            self._start_motion = (float(speed[0]), float(turn_rate[0]))
         self._running = False  # False before reset and after the end of an episode
         self._aircraft_path: list = []  # positions at each decision, kept only when rendering
         self._destination_path: list = []
@@ -243,7 +250,7 @@ class GuidanceGymEnv(gymnasium.Env):
 
     def _info(self) -> dict[str, Any]:
         return {
-            "outcome": Outcome(self._outcome).name.lower(),
+            "outcome": _OUTCOME_NAMES[self._outcome],
             "aircraft_state": np.array(self._aircraft),
             "destination_state": np.array(self._destination),
             "step_count": self._step_count,
@@ -260,25 +267,26 @@ class GuidanceGymEnv(gymnasium.Env):
         super().reset(seed=seed)
         if seed is not None:
             self.env.set_seed(int(seed))
-        with torch.no_grad():
-            if options:
+        if options:
+            with torch.no_grad():
                 state = scenario_reset(self.env, options)["scenario"]
-            else:  # GuidanceEnv._reset's draws, in its order, without its TensorDict and torch observation
-                params = self.params
-                speed, turn_rate = params.destination.initial_motion(1, self.env.generator, self.env.device)
-                start = torch.tensor([params.destination.start])
-                aircraft = sample_initial_aircraft(1, params.initial_state, start, self.env.generator)
-                state = {"aircraft_state": aircraft, "destination_state": start, "destination_speed": speed,
-                         "destination_turn_rate": turn_rate}
-        self._aircraft = tuple(state["aircraft_state"][0].tolist())
-        self._destination = tuple(state["destination_state"][0].tolist())
-        self._destination_speed = float(state["destination_speed"][0])
-        self._destination_turn_rate = float(state["destination_turn_rate"][0])
+            self._aircraft = tuple(state["aircraft_state"][0].tolist())
+            self._destination = tuple(state["destination_state"][0].tolist())
+            self._destination_speed = float(state["destination_speed"][0])
+            self._destination_turn_rate = float(state["destination_turn_rate"][0])
+        else:  # GuidanceEnv._reset's draws, in its order, in floats (its one-row torch form cost a decision)
+            speed, turn_rate = self._start_motion
+            if self._irregular:  # drawn from the generator
+                speed, turn_rate = self.params.destination.initial_motion(1, self.env.generator, self.env.device)
+                speed, turn_rate = float(speed[0]), float(turn_rate[0])
+            self._destination, self._destination_speed, self._destination_turn_rate = self._start, speed, turn_rate
+            self._aircraft = initial_aircraft_row(self.params.initial_state, self._start, self.env.generator)
         self._last_action = self._action_before_last = 0  # steady flight, as GuidanceEnv
         self._step_count = self._instruction_count = 0
         self._episode_return = 0.0
         self._outcome = int(Outcome.RUNNING)
         self._running = True
+        self._potential_now = self._potential(False)  # the next step's potential before (Phi of equation 8)
         if self.render_mode is not None:
             self._aircraft_path, self._destination_path = [self._aircraft], [self._destination]
             if self.render_mode == "human":
@@ -303,7 +311,7 @@ class GuidanceGymEnv(gymnasium.Env):
                 motion.change_probability, motion.speed_range, motion.max_turn_rate, self.env.generator,
             )
             self._destination_speed, self._destination_turn_rate = float(speed[0]), float(turn_rate[0])
-        potential_before = self._potential(False)
+        potential_before = self._potential_now  # the state has not changed since it was computed
         result = reference_decision(self._aircraft, self._destination, self._destination_speed,
                                     self._destination_turn_rate, action, self.params.simulation,
                                     self.params.maneuvers)
@@ -317,8 +325,8 @@ class GuidanceGymEnv(gymnasium.Env):
         self._instruction_count += int(switched)
         self._aircraft, self._destination, self._outcome = result.aircraft_state, result.destination_state, outcome
         self._action_before_last, self._last_action = self._last_action, action
-        reward = step_reward_row(outcome, potential_before, self._potential(terminated), self.params.reward,
-                                 switched)
+        self._potential_now = self._potential(terminated)
+        reward = step_reward_row(outcome, potential_before, self._potential_now, self.params.reward, switched)
         self._episode_return += reward
         self._running = not terminated
         if self.render_mode is not None:

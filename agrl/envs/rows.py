@@ -11,7 +11,10 @@ unbatched gymnasium environment (:mod:`agrl.envs.gym`) and the deployable guide
   against it (equal to rounding in float64);
 - :func:`observation_row` is :func:`agrl.core.observation.policy_observation`, term by term;
 - :func:`potential_row` and :func:`step_reward_row` are :func:`agrl.core.reward.potential`
-  and :func:`agrl.core.reward.step_reward` (equations 5-11).
+  and :func:`agrl.core.reward.step_reward` (equations 5-11);
+- :func:`initial_aircraft_row` is :func:`agrl.core.initial_states.sample_initial_aircraft` for one row: the
+  same draws from the same generator in the same order, in float32 arithmetic, so the same starts to the bit
+  (a one-row torch reset cost more than a whole 3 s decision here).
 
 ``tests/envs/test_rows.py`` checks each against its torch original in float64 (equal to 1e-12)
 on random states, so a change in :mod:`agrl.core` that is not made here fails a test.
@@ -22,13 +25,19 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+import numpy as np
+import torch
+
 from agrl.core.aircraft import MANEUVER_NAMES, AircraftLimits
+from agrl.core.initial_states import InitialStateDistribution
 from agrl.core.observation import NEAR_ALTITUDE_SCALE, NEAR_DISTANCE_SCALE
 from agrl.core.reward import RewardParameters
 from agrl.core.termination import Airspace, Outcome
 from agrl.reference import wrap_angle
 
 NUM_MANEUVERS = len(MANEUVER_NAMES)
+_RUNNING, _SUCCESS, _OUT_OF_AIRSPACE, _BUDGET_EXHAUSTED = (int(outcome) for outcome in (
+    Outcome.RUNNING, Outcome.SUCCESS, Outcome.OUT_OF_AIRSPACE, Outcome.BUDGET_EXHAUSTED))
 
 
 def observation_row(
@@ -103,10 +112,46 @@ def step_reward_row(outcome: int, potential_before: float, potential_after: floa
                     switched: bool = False) -> float:
     """:func:`agrl.core.reward.step_reward` (equations 5-7) plus :func:`agrl.core.reward.switch_cost_reward`
     (``switched``: this decision changed the maneuver being flown) for one row."""
-    termination = {
-        Outcome.SUCCESS: params.success,
-        Outcome.OUT_OF_AIRSPACE: params.out_of_airspace,
-        Outcome.BUDGET_EXHAUSTED: params.budget_exhausted,
-    }.get(Outcome(outcome), 0.0)
+    # Plain int comparisons: the single gymnasium env calls this at every decision.
+    if outcome == _RUNNING:
+        termination = 0.0
+    elif outcome == _SUCCESS:
+        termination = params.success
+    elif outcome == _OUT_OF_AIRSPACE:
+        termination = params.out_of_airspace
+    elif outcome == _BUDGET_EXHAUSTED:
+        termination = params.budget_exhausted
+    else:
+        allowed = ", ".join(f"{code.value} ({code.name})" for code in Outcome)
+        raise ValueError(f"outcome={outcome!r} is not allowed: one of {allowed}")
     switch_cost = -params.switch_cost if switched else 0.0
     return termination + params.gamma * potential_after - potential_before + switch_cost
+
+
+def initial_aircraft_row(distribution: InitialStateDistribution, destination_start: Sequence[float],
+                         generator: torch.Generator | None, max_redraws: int = 32) -> tuple[float, ...]:
+    """:func:`agrl.core.initial_states.sample_initial_aircraft` for one row (``destination_start``: x, y, ...).
+
+    Each value is one ``torch.rand(1)`` draw mapped as torch maps it in float32 (``low + (high - low) * u``:
+    the float scalars rounded to float32, then a float32 product and sum); the redraw test is float32's.
+    """
+    float32 = np.float32
+
+    def uniform(bounds: tuple[float, float]) -> np.float32:
+        low, high = bounds
+        return float32(low) + float32(high - low) * float32(torch.rand(1, generator=generator).item())
+
+    dest_x, dest_y = float32(destination_start[0]), float32(destination_start[1])
+    min_distance = float32(distribution.min_horizontal_distance)
+    x, y = uniform(distribution.x_range), uniform(distribution.y_range)
+    for _ in range(max_redraws):
+        if not np.hypot(x - dest_x, y - dest_y) <= min_distance:
+            break
+        x, y = uniform(distribution.x_range), uniform(distribution.y_range)
+    else:
+        raise ValueError(
+            f"min_horizontal_distance={distribution.min_horizontal_distance} m leaves (almost) no room "
+            f"in the start box x={distribution.x_range}, y={distribution.y_range}"
+        )
+    z, speed = uniform(distribution.z_range), uniform(distribution.speed_range)
+    return float(x), float(y), float(z), float(speed), 0.0, 0.0, 0.0

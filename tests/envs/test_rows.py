@@ -9,10 +9,11 @@ import pytest
 import torch
 
 from agrl.core.aircraft import AircraftLimits
+from agrl.core.initial_states import sample_initial_aircraft, scale_distribution
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
 from agrl.core.reward import potential, step_reward, switch_cost_reward
 from agrl.core.termination import Airspace, Outcome
-from agrl.envs.rows import observation_row, potential_row, step_reward_row
+from agrl.envs.rows import initial_aircraft_row, observation_row, potential_row, step_reward_row
 
 
 def random_states(count: int, seed: int = 0):
@@ -74,3 +75,22 @@ def test_potential_and_reward_rows_equal_the_torch_reward(continuous, position, 
         reward = step_reward_row(int(outcome[index]), float(expected_potential.roll(1)[index]), value, params,
                                  switched=bool(last_action[index] != before_last[index]))
         assert math.isclose(reward, float(expected_reward[index]), rel_tol=0, abs_tol=1e-6)
+
+
+@pytest.mark.parametrize("box", ["full", "curriculum", "crowded"])
+def test_initial_aircraft_row_draws_the_starts_of_sample_initial_aircraft(box, paper_parameters):
+    full = paper_parameters.initial_state
+    distribution = {
+        "full": full,
+        "curriculum": scale_distribution(full, 0.15, (0.0, 0.0, 0.0), 200.0),  # the curriculum's first box
+        # a box the exclusion disc nearly fills (many redraws) and a speed range whose bounds float32 rounds
+        "crowded": dataclasses.replace(full, x_range=(-3_000.0, 3_000.0), y_range=(-2_500.0, 2_500.0),
+                                       speed_range=(120.3, 250.7), min_horizontal_distance=1_999.9),
+    }[box]
+    start = torch.tensor([[123.456, -987.654, 0.0, 0.3]])
+    batched, one_row = torch.Generator().manual_seed(3), torch.Generator().manual_seed(3)
+    for _ in range(500):  # the two generators must also stay in step (the same number of draws)
+        expected = sample_initial_aircraft(1, distribution, start, batched)[0].tolist()
+        assert list(initial_aircraft_row(distribution, start[0].tolist(), one_row)) == expected
+    with pytest.raises(ValueError, match="min_horizontal_distance"):
+        initial_aircraft_row(dataclasses.replace(full, min_horizontal_distance=1e6), (0.0, 0.0), one_row)
