@@ -107,40 +107,62 @@ def maneuver_table(
     return ManeuverControls(table[:, 0].contiguous(), table[:, 1].contiguous(), table[:, 2].contiguous())
 
 
+class ManeuverLoads(NamedTuple):
+    """One maneuver's control law at the current flight-path angle: load factors and bank."""
+
+    axial_load: torch.Tensor  # n_x, g
+    normal_load: torch.Tensor  # n_z, g
+    bank: torch.Tensor  # phi, rad
+    cos_bank: torch.Tensor  # cos(phi)
+    sin_bank: torch.Tensor  # sin(phi)
+
+
 def load_factors_and_bank(
     flight_path_angle: torch.Tensor,
     axial_excess: torch.Tensor,
     normal_load: torch.Tensor,
     turn_direction: torch.Tensor,
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Map one maneuver's control law to (n_x, n_z, phi) at the current flight-path angle."""
+) -> ManeuverLoads:
+    """Map one maneuver's control law to (n_x, n_z, phi) at the current flight-path angle.
+
+    A coordinated turn banks so that the vertical lift component balances gravity's:
+    n_z cos(phi) = cos(theta). So cos(phi) = cos(theta) / n_z and sin(phi) = +-sqrt(1 - cos^2(phi))
+    without evaluating trigonometric functions of phi (they are most of a step's cost otherwise);
+    phi itself is only needed where the state is reported.
+    """
     cos_theta = torch.cos(flight_path_angle)
     axial_load = torch.sin(flight_path_angle) + axial_excess
     normal = torch.where(torch.isnan(normal_load), cos_theta, normal_load)
-    # Coordinated turn: the vertical lift component n_z cos(phi) balances cos(theta).
-    # For wings-level rows turn_direction is 0, so the (clamped) arccos is multiplied away.
-    bank = turn_direction * torch.acos((cos_theta / normal).clamp(-1.0, 1.0))
-    return axial_load, normal, bank
+    turn_cos_bank = (cos_theta / normal).clamp(-1.0, 1.0)
+    # Wings-level rows have turn_direction 0: phi = 0, so cos(phi) = 1 and sin(phi) = 0.
+    cos_bank = torch.where(turn_direction == 0, 1.0, turn_cos_bank)
+    sin_bank = turn_direction * torch.sqrt(1.0 - turn_cos_bank * turn_cos_bank)
+    bank = turn_direction * torch.acos(turn_cos_bank)
+    return ManeuverLoads(axial_load, normal, bank, cos_bank, sin_bank)
 
 
 def point_mass_derivatives(
     speed: torch.Tensor,
     flight_path_angle: torch.Tensor,
     heading: torch.Tensor,
-    bank: torch.Tensor,
+    cos_bank: torch.Tensor,
+    sin_bank: torch.Tensor,
     axial_load: torch.Tensor,
     normal_load: torch.Tensor,
     gravity: float = GRAVITY,
 ) -> tuple[torch.Tensor, ...]:
-    """Equation 3: time derivatives (x', y', z', v', theta', psi') of the point-mass aircraft."""
+    """Equation 3: time derivatives (x', y', z', v', theta', psi') of the point-mass aircraft.
+
+    The bank angle phi enters equation 3 only through cos(phi) and sin(phi), which are passed as such.
+    """
     cos_theta = torch.cos(flight_path_angle)
     sin_theta = torch.sin(flight_path_angle)
     x_rate = speed * cos_theta * torch.cos(heading)
     y_rate = speed * cos_theta * torch.sin(heading)
     z_rate = speed * sin_theta
     speed_rate = gravity * (axial_load - sin_theta)
-    flight_path_rate = gravity / speed * (normal_load * torch.cos(bank) - cos_theta)
-    heading_rate = -gravity / (speed * cos_theta) * normal_load * torch.sin(bank)
+    flight_path_rate = gravity / speed * (normal_load * cos_bank - cos_theta)
+    heading_rate = -gravity / (speed * cos_theta) * normal_load * sin_bank
     return x_rate, y_rate, z_rate, speed_rate, flight_path_rate, heading_rate
 
 
@@ -162,11 +184,10 @@ def integrate_aircraft(
     angle is set by the maneuver (the paper's discrete action model commands it).
     Heading is left unwrapped: callers wrap it where they compare angles.
     """
-    axial_load, normal, bank = load_factors_and_bank(
-        state.flight_path_angle, axial_excess, normal_load, turn_direction
-    )
+    loads = load_factors_and_bank(state.flight_path_angle, axial_excess, normal_load, turn_direction)
     _, _, _, speed_rate, flight_path_rate, heading_rate = point_mass_derivatives(
-        state.speed, state.flight_path_angle, state.heading, bank, axial_load, normal, gravity
+        state.speed, state.flight_path_angle, state.heading, loads.cos_bank, loads.sin_bank, loads.axial_load,
+        loads.normal_load, gravity,
     )
     speed = (state.speed + speed_rate * dt).clamp(limits.min_speed, limits.max_speed)
     flight_path_angle = (state.flight_path_angle + flight_path_rate * dt).clamp(
@@ -181,7 +202,7 @@ def integrate_aircraft(
         speed=speed,
         flight_path_angle=flight_path_angle,
         heading=heading,
-        bank=bank,
+        bank=loads.bank,
     )
 
 

@@ -71,12 +71,14 @@ def _substep(
     outcome: torch.Tensor,
     params: SimulationParameters,
 ):
-    dt = params.integration_step
     airspace = params.airspace
+    # A finished row is frozen by a zero step (x + rate * 0 = x exactly): the next step's trigonometric
+    # functions then read the very values this step wrote, which lets the fused kernel compute them once.
+    dt = params.integration_step * active.to(aircraft.speed.dtype)
     moved = integrate_aircraft(
         aircraft, axial_excess, normal_load, turn_direction, dt, params.limits, params.gravity
     )
-    moved_destination = move_destination(
+    destination = move_destination(
         destination,
         destination_speed,
         destination_turn_rate,
@@ -84,10 +86,7 @@ def _substep(
         (airspace.x_min, airspace.x_max),
         (airspace.y_min, airspace.y_max),
     )
-    aircraft = AircraftState(*(torch.where(active, new, old) for new, old in zip(moved, aircraft, strict=True)))
-    destination = DestinationState(
-        *(torch.where(active, new, old) for new, old in zip(moved_destination, destination, strict=True))
-    )
+    aircraft = moved._replace(bank=torch.where(active, moved.bank, aircraft.bank))  # the maneuver sets the bank
     succeeded = active & is_success(
         aircraft.x, aircraft.y, aircraft.z, aircraft.heading, *destination, params.tolerance
     )

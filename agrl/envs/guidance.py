@@ -211,19 +211,35 @@ class GuidanceEnv(EnvBase):
                 state[key] = torch.zeros(batch, device=self.device)
             return state
         scenario = tensordict.get("scenario", None) if tensordict is not None else None
-        if scenario is not None:
-            aircraft_state = scenario["aircraft_state"].reshape(count, 7)
-            destination_state = scenario["destination_state"].reshape(count, 4)
-            destination_speed = scenario["destination_speed"].reshape(count)
-            destination_turn_rate = scenario["destination_turn_rate"].reshape(count)
-        else:
-            destination_state = self._destination_start.expand(count, 4).clone()
-            destination_speed, destination_turn_rate = self.params.destination.initial_motion(
-                count, self._generator, self.device
-            )
-            aircraft_state = sample_initial_aircraft(
-                count, self.params.initial_state, destination_state, self._generator, self.device
-            )
+        if scenario is None:
+            return self.fresh_rows(count).reshape(batch)
+        return self.start_rows(
+            scenario["aircraft_state"].reshape(count, 7),
+            scenario["destination_state"].reshape(count, 4),
+            scenario["destination_speed"].reshape(count),
+            scenario["destination_turn_rate"].reshape(count),
+        ).reshape(batch)
+
+    def fresh_rows(self, count: int) -> TensorDictBase:
+        """``count`` new episodes drawn from the env's generator (flat batch ``[count]``), as a reset returns them.
+
+        The gymnasium vector env restarts only its finished rows with this, instead of drawing a whole batch.
+        """
+        destination_state = self._destination_start.expand(count, 4).clone()
+        destination_speed, destination_turn_rate = self.params.destination.initial_motion(
+            count, self._generator, self.device
+        )
+        aircraft_state = sample_initial_aircraft(
+            count, self.params.initial_state, destination_state, self._generator, self.device
+        )
+        return self.start_rows(aircraft_state, destination_state, destination_speed, destination_turn_rate)
+
+    def start_rows(
+        self, aircraft_state: torch.Tensor, destination_state: torch.Tensor, destination_speed: torch.Tensor,
+        destination_turn_rate: torch.Tensor,
+    ) -> TensorDictBase:
+        """Rows at the start of an episode from these initial conditions (flat batch), observation included."""
+        count = aircraft_state.shape[0]
         steady = torch.zeros(count, dtype=torch.int64, device=self.device)
         state = TensorDict(
             {
@@ -243,7 +259,7 @@ class GuidanceEnv(EnvBase):
             },
             batch_size=[count],
             device=self.device,
-        ).reshape(batch)
+        )
         state["observation"] = self.observe(state)
         return state
 

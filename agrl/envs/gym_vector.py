@@ -110,14 +110,16 @@ class GuidanceVectorEnv(VectorEnv):
         return observation, info
 
     def _restart(self, state, rows: torch.Tensor):
-        """``state`` with the ``rows`` (a bool mask) replaced by fresh starts (the next draws of the generator).
+        """``state`` with the ``rows`` (a bool mask) replaced by fresh starts: the next draws of the generator,
+        one per restarting row in row order (with ``num_envs=1``, the single env's draws).
 
-        The fresh starts come from ``GuidanceEnv._reset`` itself: ``EnvBase.reset``'s bookkeeping around it (done
-        keys, spec checks) was a third of an autoreset's cost, and only the row keys are kept."""
-        fresh = self.env._reset(None)
+        Only the restarting rows are drawn and observed (``GuidanceEnv.fresh_rows``), not a whole batch. The
+        entries are replaced, not written into: a step's outputs share tensors with its inputs (the caller's
+        action array among them)."""
+        index = rows.nonzero().squeeze(-1)
+        fresh = self.env.fresh_rows(index.numel())
         for key in _ROW_KEYS:
-            value = state[key]
-            state[key] = torch.where(rows.view(-1, *(1,) * (value.ndim - 1)), fresh[key], value)
+            state[key] = state[key].index_put((index,), fresh[key])
         return state
 
     def _actions(self, actions) -> torch.Tensor:

@@ -17,6 +17,7 @@ from agrl.core.aircraft import (
     MANEUVER_NAMES,
     AircraftState,
     integrate_aircraft,
+    load_factors_and_bank,
     maneuver_table,
     point_mass_derivatives,
     wrap_angle,
@@ -90,7 +91,7 @@ def test_point_mass_derivatives_match_equation_3():
     phi = (torch.rand(count, generator=generator, dtype=F64) - 0.5) * 2.0
     n_x = (torch.rand(count, generator=generator, dtype=F64) - 0.5) * 2.0
     n_z = torch.rand(count, generator=generator, dtype=F64) * 4.0 - 1.0
-    got = torch.stack(point_mass_derivatives(v, theta, psi, phi, n_x, n_z), dim=-1)
+    got = torch.stack(point_mass_derivatives(v, theta, psi, torch.cos(phi), torch.sin(phi), n_x, n_z), dim=-1)
     g = GRAVITY
     for i in range(count):
         vi, th, ps, ph, nx, nz = (float(t[i]) for t in (v, theta, psi, phi, n_x, n_z))
@@ -103,6 +104,23 @@ def test_point_mass_derivatives_match_equation_3():
             -g / (vi * math.cos(th)) * nz * math.sin(ph),
         ]
         assert got[i].tolist() == pytest.approx(expected, rel=1e-9, abs=1e-9)
+
+
+def test_bank_cosine_and_sine_are_those_of_the_bank(table):
+    # The control law gives cos(phi) and sin(phi) without trigonometry; they must be those of phi itself.
+    theta = torch.linspace(-0.5, 0.5, 41, dtype=F64)
+    for action in range(len(MANEUVER_NAMES)):
+        loads = load_factors_and_bank(theta, table.axial_excess[action], table.normal_load[action],
+                                      table.turn_direction[action])
+        torch.testing.assert_close(loads.cos_bank, torch.cos(loads.bank), rtol=0, atol=1e-12)
+        torch.testing.assert_close(loads.sin_bank, torch.sin(loads.bank), rtol=0, atol=1e-12)
+        turning = bool(table.turn_direction[action] != 0)
+        # A coordinated turn balances gravity's vertical component: n_z cos(phi) = cos(theta).
+        if turning:
+            torch.testing.assert_close(loads.normal_load * loads.cos_bank, torch.cos(theta), rtol=0, atol=1e-12)
+            assert torch.all(loads.bank * table.turn_direction[action] > 0)
+        else:
+            assert torch.all(loads.bank == 0)
 
 
 @pytest.mark.parametrize("maneuver", ["steady_flight", "accelerate", "decelerate"])

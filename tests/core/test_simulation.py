@@ -101,8 +101,12 @@ def test_inactive_rows_are_frozen(simulation, controls):
     simulator = DecisionSimulator(simulation, controls, compile=False)
     result = simulator(aircraft, destination, speed + 20, turn_rate, actions, active=active)
     frozen = ~active
-    # Inactive rows: every field unchanged (headings were already wrapped) and no outcome.
+    # Inactive rows: every field unchanged (headings were already wrapped: wrapping again may round) and no
+    # outcome; the other fields exactly (a frozen row takes zero-length steps).
     torch.testing.assert_close(result.aircraft_state[frozen], aircraft[frozen], rtol=0, atol=1e-6)
+    unwrapped = [0, 1, 2, 3, 4, 6]
+    assert torch.equal(result.aircraft_state[frozen][:, unwrapped], aircraft[frozen][:, unwrapped])
+    assert torch.equal(result.destination_state[frozen][:, :3], destination[frozen][:, :3])
     torch.testing.assert_close(result.destination_state[frozen], destination[frozen], rtol=0, atol=1e-6)
     assert torch.all(result.outcome[frozen] == Outcome.RUNNING)
     # Active rows moved (aircraft always, destination at >= 20 m/s).

@@ -101,7 +101,9 @@ def test_rows_from_scenarios_fly_the_single_env_episodes_and_autoreset_on_the_ne
     actions = [[0, 0, 1], [0, 0, 2], [0, 0, 1], [5, 5, 0], [1, 1, 1]]
     finished_at, restarted = {}, set()
     for decision, action in enumerate(actions, start=1):
-        vector_out = envs.step(np.array(action))
+        sent = np.array(action)
+        vector_out = envs.step(sent)
+        assert sent.tolist() == action  # the restart must not write into the caller's action array
         for row, single in enumerate(singles):
             if row in finished_at and finished_at[row] == decision - 1:  # the autoreset step of this row
                 assert vector_out[1][row] == 0.0 and not vector_out[2][row]
