@@ -210,7 +210,7 @@ class Guide:
             inputs = dict(zip(INPUT_NAMES, (aircraft, destination, last_action), strict=True))
             return self._runner.run([OUTPUT_NAME], inputs)[0]
         module = self.policy if self.kind == "checkpoint" else self._runner
-        with torch.no_grad():
+        with torch.inference_mode():  # no autograd bookkeeping at all (no_grad still counts tensor versions)
             return module(torch.from_numpy(aircraft), torch.from_numpy(destination),
                           torch.from_numpy(last_action)).numpy()
 

@@ -95,5 +95,7 @@ def policy_observation(
         ),
         dim=-1,
     )
-    one_hot = torch.nn.functional.one_hot(last_action.long(), len(MANEUVER_NAMES)).to(features.dtype)
+    # One-hot by comparison: the same values as F.one_hot without its range check (a pass over the batch).
+    maneuvers = torch.arange(len(MANEUVER_NAMES), device=last_action.device)
+    one_hot = (last_action.long().unsqueeze(-1) == maneuvers).to(features.dtype)
     return torch.cat((features, one_hot), dim=-1)

@@ -64,8 +64,6 @@ __all__ = ["Counters", "Trainer", "TrainingDiverged"]
 
 log = logging.getLogger("agrl.train")
 
-#: Seed offset between collector workers' env streams (ppo.collector_workers > 1): worker w uses seed + w * this.
-WORKER_SEED_STRIDE = 7_919
 
 
 @dataclass
@@ -135,15 +133,20 @@ class Trainer:
                              device=self.device, auto_register_policy_transforms=False)
         envs_per_worker = self.cfg.ppo.num_envs // workers
         make_envs = [functools.partial(SharedScaleGuidanceEnv, self.params, num_envs=envs_per_worker,
-                                       device=self.device, seed=self.cfg.seed + WORKER_SEED_STRIDE * worker)
-                     for worker in range(workers)]
+                                       device=self.device, seed=None)  # seeded below
+                     for _ in range(workers)]
         # The scale goes as an env kwarg: TorchRL cloudpickles the env factory (a copy of any tensor in it) but
         # hands create_env_kwargs to the process itself, which torch.multiprocessing pickles as shared storage.
-        return MultiSyncCollector(make_envs, self.actor, create_env_kwargs=[{"scale": self.worker_scale}] * workers,
-                                  frames_per_batch=self.frames_per_batch, total_frames=-1,
-                                  device=self.device, cat_results=0, update_at_each_batch=True, use_buffers=True,
-                                  num_threads=torch.get_num_threads(),  # this process's threads: the PPO update
-                                  auto_register_policy_transforms=False)
+        collector = MultiSyncCollector(
+            make_envs, self.actor, create_env_kwargs=[{"scale": self.worker_scale}] * workers,
+            frames_per_batch=self.frames_per_batch, total_frames=-1, device=self.device, cat_results=0,
+            update_at_each_batch=True, use_buffers=True,
+            num_threads=torch.get_num_threads(),  # this process's threads: the PPO update
+            auto_register_policy_transforms=False)
+        # Each worker's env generator (distinct seeds from `seed`) and its torch generator, which samples the
+        # actor's actions there: without it a worker run is not reproducible.
+        collector.set_seed(self.cfg.seed)
+        return collector
 
     def _load_baseline(self, reference: str):
         """The frozen baseline actor B; pretrained (and reuse from B) also start Z's networks from it."""

@@ -46,6 +46,23 @@ def test_worker_batches_have_the_single_collectors_specs_and_the_current_weights
         multi.collector.shutdown()
 
 
+@pytest.mark.slow  # four spawned worker processes: about 50 s on a loaded 2-core machine
+def test_a_worker_run_is_reproducible_and_its_workers_fly_different_episodes(tmp_path, compose_train, tiny_args):
+    """The same seed gives the same batches (starts and sampled actions); the two workers' starts differ."""
+    batches = []
+    for name in ("first", "second"):
+        trainer = Trainer(compose_train(*tiny_args(WORKERS)), tmp_path / name)
+        try:
+            batches.append(next(iter(trainer.collector)))
+        finally:
+            trainer.collector.shutdown()
+    first, second = batches
+    assert torch.equal(first["action"], second["action"])
+    assert torch.equal(first["aircraft_state"], second["aircraft_state"])
+    starts = first["aircraft_state"][:, 0]  # 32 envs: the first 16 are worker 0's, the rest worker 1's
+    assert not torch.equal(starts[:16], starts[16:])
+
+
 @pytest.mark.slow
 def test_a_worker_run_learns(tmp_path, run_cli):
     """Pre-training from the shipped baseline on the 100 m/s destination with two collector workers, 10 iterations:
