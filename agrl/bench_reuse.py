@@ -6,8 +6,10 @@ batch with the agent Z (untrained, or the actor of ``--checkpoint``), then times
 with the selection factor reset to ``--selection-factor`` before every call. This is the work the
 replay buffer's ``extend`` does in one training iteration (``time/reuse_seconds`` in a run).
 With ``--iterations N`` the trainer first runs N training iterations (collection, relabelling, PPO
-update), and the timed batch is the next one, relabelled from the state training left (e, the rows
-kept of episodes spanning batches): a real iteration's work rather than the first batch's.
+update; one ``reuse_training_iteration`` line each, with its relabelling's figures as training met them,
+the first one's compilations included), and the timed batch is the next one, relabelled from the state
+training left (e, the rows kept of episodes spanning batches): a real iteration's work rather than the
+first batch's.
 
 Every line has ``name``, ``value`` (median seconds over ``--repeats`` calls after one warm-up call)
 and ``unit``, plus the median process CPU seconds (``cpu_seconds``: comparable on a loaded machine with
@@ -47,7 +49,7 @@ class SimulatorCount:
     """Simulator calls of one relabelling: calls, row-decisions, CPU seconds, and row-decisions per call size."""
 
     def __init__(self):
-        self.calls, self.row_decisions, self.cpu_seconds = 0, 0, 0.0
+        self.calls, self.row_decisions, self.cpu_seconds, self.relabel_cpu_seconds = 0, 0, 0.0, 0.0
         bounds = (0, *CALL_SIZES)
         self.by_size = {f"{low}-{high - 1}": 0 for low, high in zip(bounds, CALL_SIZES, strict=False)}
         self.by_size[f"{CALL_SIZES[-1]}+"] = 0
@@ -58,6 +60,16 @@ class SimulatorCount:
         self.cpu_seconds += cpu_seconds
         bucket = next((index for index, high in enumerate(CALL_SIZES) if rows < high), len(CALL_SIZES))
         self.by_size[list(self.by_size)[bucket]] += rows
+
+    def record(self) -> dict:
+        return {"simulated_row_decisions": self.row_decisions, "time_loop_steps": self.calls,
+                "simulator_cpu_seconds": round(self.cpu_seconds, 3), "row_decisions_by_call_rows": self.by_size}
+
+
+def _episodes(statistics_: dict[str, float]) -> dict[str, int]:
+    """The relabelling's episode counts (of :meth:`PolicyReuseTransform.last_statistics`)."""
+    return {f"episodes_{kind}": statistics_[f"train/reuse_episodes_{kind}"]
+            for kind in ("selected", "searched", "carried", "relabelled")}
 
 
 def _non_negative(text: str) -> int:
@@ -117,28 +129,46 @@ def main(argv: Sequence[str] | None = None) -> int:
             payload = load_checkpoint(args.checkpoint, required=("actor", "critic"))
             load_module_state(trainer.actor, payload["actor"], args.checkpoint, "actor")
             load_module_state(trainer.critic, payload["critic"], args.checkpoint, "critic")
-        batches = iter(trainer.collector)
-        for _ in range(args.iterations):
-            trainer.learn(next(batches))
-            trainer.counters.iteration += 1
-        batch = next(batches)
-        trainer.collector.shutdown()
-        with torch.no_grad():
-            rows = trainer.advantage(batch).reshape(-1)
         transform = trainer.reuse
-        state = copy.deepcopy(transform.state_dict())  # e, the draws and the kept rows as training left them
-        budget = trainer.params.max_decisions
-        # Count the rows the relabelling simulates (its cost, independent of the machine's load), per call's size.
+        # Count the rows the relabelling simulates (its cost, independent of the machine's load), per call's size;
+        # the envs' own steps (collection) call the same simulator outside the relabelling and are not counted.
         simulated = SimulatorCount()
-        simulator = trainer.env.simulator
+        simulator, relabel = trainer.env.simulator, transform.relabel
+        relabelling = [False]
 
         def counting_simulator(aircraft_state, *args, **kwargs):
             cpu_start = time.process_time()
             result = simulator(aircraft_state, *args, **kwargs)
-            simulated.add(aircraft_state.shape[0], time.process_time() - cpu_start)
+            if relabelling[0]:
+                simulated.add(aircraft_state.shape[0], time.process_time() - cpu_start)
             return result
 
-        trainer.env.simulator = counting_simulator
+        def counting_relabel(rows):
+            relabelling[0] = True
+            cpu_start = time.process_time()
+            try:
+                return relabel(rows)
+            finally:
+                relabelling[0] = False
+                simulated.relabel_cpu_seconds = time.process_time() - cpu_start
+
+        trainer.env.simulator, transform.relabel = counting_simulator, counting_relabel
+        batches = iter(trainer.collector)
+        for iteration in range(1, args.iterations + 1):
+            simulated = SimulatorCount()
+            trainer.learn(next(batches))
+            trainer.counters.iteration += 1
+            statistics_ = transform.last_statistics()
+            emit({"name": "reuse_training_iteration", "iteration": iteration,
+                  "value": round(statistics_["time/reuse_relabel_seconds"], 3), "unit": "s relabelling",
+                  "cpu_seconds": round(simulated.relabel_cpu_seconds, 3), **simulated.record(),
+                  "selection_factor": round(statistics_["train/e"], 5), **_episodes(statistics_)})
+        batch = next(batches)
+        trainer.collector.shutdown()
+        with torch.no_grad():
+            rows = trainer.advantage(batch).reshape(-1)
+        state = copy.deepcopy(transform.state_dict())  # e, the draws and the kept rows as training left them
+        budget = trainer.params.max_decisions
         for candidates in args.candidates:
             transform.candidates = candidate_steps(budget, config.method.candidate_stride, candidates).to(rows.device)
             timings, cpu_timings = [], []
@@ -148,7 +178,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                     transform.selection_factor = args.selection_factor
                 simulated = SimulatorCount()
                 start, cpu_start = time.perf_counter(), time.process_time()
-                stored = transform.relabel(rows)
+                stored = counting_relabel(rows)
                 if call:
                     timings.append(time.perf_counter() - start)
                     cpu_timings.append(time.process_time() - cpu_start)
@@ -158,19 +188,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "value": round(statistics.median(timings), 3),
                 "unit": "s per batch",
                 "cpu_seconds": round(statistics.median(cpu_timings), 3),
-                "simulated_row_decisions": simulated.row_decisions,
-                "time_loop_steps": simulated.calls,
-                "simulator_cpu_seconds": round(simulated.cpu_seconds, 3),
-                "row_decisions_by_call_rows": simulated.by_size,
+                **simulated.record(),
                 "candidates": int(transform.candidates.numel()),
                 "iterations_before": args.iterations,
                 "selection_factor": round(float(state["selection_factor"]) if args.selection_factor is None
                                           else args.selection_factor, 5),
                 "batch_rows": rows.numel(),
-                "episodes_selected": statistics_["train/reuse_episodes_selected"],
-                "episodes_searched": statistics_["train/reuse_episodes_searched"],
-                "episodes_carried": statistics_["train/reuse_episodes_carried"],
-                "episodes_relabelled": statistics_["train/reuse_episodes_relabelled"],
+                **_episodes(statistics_),
                 "rows_stored": stored.numel(),
                 "reuse_fraction": round(statistics_["train/reuse_fraction"], 4),
                 "z": args.checkpoint or "untrained",

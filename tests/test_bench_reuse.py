@@ -40,7 +40,14 @@ def test_after_training_iterations_the_batch_continues_episodes_of_the_one_befor
     environment = {**os.environ, "OMP_NUM_THREADS": "1"}
     completed = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path, env=environment)
     assert completed.returncode == 0, completed.stderr
-    record = json.loads(completed.stdout.splitlines()[-1])
+    # The trainer's replay buffer logs a line when it first fills (torchrl's logger writes to stdout).
+    records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
+    assert [record["name"] for record in records] == ["machine", "reuse_training_iteration", "reuse_relabel"]
+    trained, record = records[1:]
+    # The training iteration's relabelling is counted like the timed one (the collection's steps are not).
+    assert trained["iteration"] == 1 and trained["episodes_carried"] == 0 and trained["cpu_seconds"] > 0
+    assert sum(trained["row_decisions_by_call_rows"].values()) == trained["simulated_row_decisions"] > 0
+    assert record["selection_factor"] == trained["selection_factor"]
     assert record["iterations_before"] == 1
     assert record["selection_factor"] < 1.0, "e as the first iteration left it, not reset to 1"
     # 16 decisions per env per batch: episodes that began in the first batch continue in the second.
