@@ -151,7 +151,7 @@ class PolicyReuseTransform(Transform):
         self.keep = keep
         self.ppo_targets = ppo_targets
         self.max_rows = max_rows
-        # Shortcuts off by default (not the paper's semantics, see docs/policy_reuse.md): False skips the search
+        # Shortcuts off by default (not the paper's semantics; the module docstring): False skips the search
         # of an episode still running at the batch's end (it is searched once, in the batch where it ends) ...
         self.relabel_unfinished = relabel_unfinished
         # ... and of an episode the agent itself flew to a success (its own rows are kept).
