@@ -30,17 +30,41 @@ def test_quick_run_times_each_candidate_count(tmp_path):
         assert record["episodes_selected"] >= 64
         assert 0 <= record["episodes_relabelled"] <= record["episodes_selected"]
         assert 0.0 <= record["reuse_fraction"] <= 1.0 and record["rows_stored"] > 0
+        assert sum(record["row_decisions_by_call_rows"].values()) == record["simulated_row_decisions"]
+        assert 0 < record["time_loop_steps"] <= record["simulated_row_decisions"]
+        assert record["episodes_searched"] == record["episodes_selected"] and record["episodes_carried"] == 0
+
+
+def test_after_training_iterations_the_batch_continues_episodes_of_the_one_before(tmp_path):
+    command = [sys.executable, "-m", "agrl.bench_reuse", "--quick", "--candidates", "2", "--iterations", "1"]
+    environment = {**os.environ, "OMP_NUM_THREADS": "1"}
+    completed = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path, env=environment)
+    assert completed.returncode == 0, completed.stderr
+    # The trainer's replay buffer logs a line when it first fills (torchrl's logger writes to stdout).
+    records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
+    assert [record["name"] for record in records] == ["machine", "reuse_training_iteration", "reuse_relabel"]
+    trained, record = records[1:]
+    # The training iteration's relabelling is counted like the timed one (the collection's steps are not).
+    assert trained["iteration"] == 1 and trained["episodes_carried"] == 0 and trained["cpu_seconds"] > 0
+    assert sum(trained["row_decisions_by_call_rows"].values()) == trained["simulated_row_decisions"] > 0
+    assert record["selection_factor"] == trained["selection_factor"]
+    assert record["iterations_before"] == 1
+    assert record["selection_factor"] < 1.0, "e as the first iteration left it, not reset to 1"
+    # 16 decisions per env per batch: episodes that began in the first batch continue in the second.
+    assert record["episodes_carried"] > 0
 
 
 def test_arguments():
     default = parse_args([])
     assert default.candidates == [8, 16, 32] and default.repeats == 3
+    assert default.iterations == 0 and default.selection_factor == 1.0
+    assert parse_args(["--iterations", "3"]).selection_factor is None, "with iterations: the e training reached"
     assert default.overrides == ["task=uniform", "speed=50", "method=reuse", "progress=false"]
     custom = parse_args(["task=curved", "radius=500", "--candidates", "16", "--selection-factor", "0.5"])
     assert custom.overrides[:2] == ["task=curved", "radius=500"] and custom.selection_factor == 0.5
 
 
-@pytest.mark.parametrize("argv", [["--selection-factor", "1.5"], ["--candidates", "0"]])
+@pytest.mark.parametrize("argv", [["--selection-factor", "1.5"], ["--candidates", "0"], ["--iterations", "-1"]])
 def test_bad_arguments_are_one_line_errors(argv, capsys):
     with pytest.raises(SystemExit):
         parse_args(argv)

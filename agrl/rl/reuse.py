@@ -22,6 +22,10 @@ probability ``e`` when it started, re-played with the frozen baseline agent B:
    ``t_n``; if none does, the agent's own data is kept. ``e`` drops by ``k`` for
    every selected episode and stops at 0 (Algorithm 1 line 32).
 
+Two shortcuts, off by default (``relabel_unfinished=False``, ``relabel_own_successes=False``), skip the search
+of an episode still running at the batch's end (it is searched once, in the batch where it ends: Algorithm 1
+line 6 searches after Z ran the complete episode) or of one Z itself flew to a success; their rows stay Z's.
+
 The candidates run in a few waves (the earliest t_n first for ``earliest``), all
 episodes together in each: a time loop per wave, with finished rows dropped as
 they end, and no Python loop over episodes or candidates. The loop records each
@@ -133,6 +137,8 @@ class PolicyReuseTransform(Transform):
         keep: str,
         max_rows: int | None = None,
         seed: int = 0,
+        relabel_unfinished: bool = True,
+        relabel_own_successes: bool = True,
     ):
         super().__init__(in_keys=[], out_keys=[])
         if keep not in ("earliest", "latest"):
@@ -145,6 +151,11 @@ class PolicyReuseTransform(Transform):
         self.keep = keep
         self.ppo_targets = ppo_targets
         self.max_rows = max_rows
+        # Shortcuts off by default (not the paper's semantics; the module docstring): False skips the search
+        # of an episode still running at the batch's end (it is searched once, in the batch where it ends) ...
+        self.relabel_unfinished = relabel_unfinished
+        # ... and of an episode the agent itself flew to a success (its own rows are kept).
+        self.relabel_own_successes = relabel_own_successes
         self.candidates = candidate_steps(env.params.max_decisions, candidate_stride, max_candidates).to(env.device)
         self.generator = torch.Generator(device=env.device).manual_seed(seed + 7_919)
         self._statistics: dict[str, float] = {}
@@ -213,7 +224,8 @@ class PolicyReuseTransform(Transform):
         has_start = torch.zeros(int(episode_ids[-1]) + 1, dtype=torch.bool, device=device)
         has_start[episode_ids[starts]] = True
         relabellable = float(has_start[traj_ids].float().mean())
-        starts = starts[selected]
+        searched = selected & self._searchable(known, rows, in_batch, starts, episode_ids)
+        starts = starts[searched]
         episodes = int(starts.numel())
         self.selection_factor = max(0.0, self.selection_factor - self.selection_decay * int(draws.sum()))
 
@@ -245,7 +257,8 @@ class PolicyReuseTransform(Transform):
         self._statistics = {
             "train/e": self.selection_factor,
             "train/reuse_fraction": relabelled_count / max(output.numel(), 1),
-            "train/reuse_episodes_selected": episodes,
+            "train/reuse_episodes_selected": int(selected.sum()),
+            "train/reuse_episodes_searched": episodes,
             "train/reuse_episodes_carried": int((~new[selected]).sum()),
             "train/reuse_relabellable_fraction": relabellable,
             "train/reuse_episodes_relabelled": int((succeeded & ~dropped).sum()),
@@ -295,6 +308,26 @@ class PolicyReuseTransform(Transform):
         episode_ids = torch.cumsum(boundary.long(), 0) - 1
         carried = kept & self._carry_selected[env] if carry_rows else kept
         return known, per_env, ~kept, episode_ids, carried
+
+    def _searchable(
+        self, known: TensorDictBase, rows: TensorDictBase, in_batch: torch.Tensor, starts: torch.Tensor,
+        episode_ids: torch.Tensor,
+    ) -> torch.Tensor:
+        """Per episode start: whether its search runs (all True unless a shortcut of ``__init__`` is on)."""
+        searchable = torch.ones(starts.numel(), dtype=torch.bool, device=starts.device)
+        if self.relabel_unfinished and self.relabel_own_successes:
+            return searchable
+        # Each episode's last row (episode ids ascend, one contiguous run of rows each).
+        last_row = torch.searchsorted(episode_ids, episode_ids[starts], right=True) - 1
+        ended = known["next", "done"].reshape(-1)[last_row]
+        if not self.relabel_unfinished:
+            searchable &= ended
+        if not self.relabel_own_successes:
+            # An ended episode's last row is in this batch (kept rows are those of unfinished episodes).
+            outcome = torch.full((known.numel(),), int(Outcome.RUNNING), dtype=torch.long, device=starts.device)
+            outcome[in_batch] = rows["next", "outcome"].reshape(-1).long()
+            searchable &= ~(ended & (outcome[last_row] == Outcome.SUCCESS))
+        return searchable
 
     def _keep_unfinished(
         self, known: TensorDictBase, per_env: torch.Tensor, starts: torch.Tensor, selected: torch.Tensor
@@ -372,7 +405,8 @@ class PolicyReuseTransform(Transform):
             # What the actor computes in DETERMINISTIC mode (Categorical(logits).mode), without its TensorDict
             # and distribution wrappers: the search calls this once per time step (tested equal to the actor).
             logits = self._baseline_logits(observation)
-            return torch.distributions.Categorical(logits=logits, validate_args=False).mode
+            # Categorical(logits=logits).mode, op for op: the normalised logits' softmax, then its argmax.
+            return torch.softmax(logits - logits.logsumexp(dim=-1, keepdim=True), dim=-1).argmax(dim=-1)
         query = TensorDict({"observation": observation}, batch_size=observation.shape[:-1], device=observation.device)
         with set_exploration_type(ExplorationType.DETERMINISTIC):
             return self.baseline_actor(query)["action"]
@@ -448,52 +482,57 @@ class PolicyReuseTransform(Transform):
         candidate = wave.repeat(pending.numel())
         budget = self.env.params.max_decisions
         target_step = self.candidates[candidate]
-        limit = (target_step + spacing).clamp(max=budget)
-        steps = int(limit.max())
+        # Steps each row may run: to its candidate's limit, or to the end of the episode's decision budget.
+        stop = torch.minimum((target_step + spacing).clamp(max=budget), budget - start_rows["step_count"][episode])
+        steps = int(stop.max())
         predicted = trajectory[episode, target_step]
         aircraft = start_rows["aircraft_state"][episode]
         destination = start_rows["destination_state"][episode]
         last_action = start_rows["last_action"][episode].long()
-        first_step = start_rows["step_count"][episode]
-        rows = episode.numel()
-        actions = torch.empty(rows, steps, dtype=torch.long, device=device)
-        aircraft_after = aircraft.new_empty(rows, steps, aircraft.shape[-1])
-        destination_after = destination.new_empty(rows, steps, destination.shape[-1])
         reduce = "amin" if self.keep == "earliest" else "amax"
-        alive = torch.arange(rows, device=device)
+        # The running rows, compacted as rows end: their row number, episode, candidate, prediction and stop.
+        alive = torch.arange(episode.numel(), device=device)
+        log = []  # per step: the running rows, B's actions and the simulator's states after the step
         for step in range(steps):
             if alive.numel() == 0:
                 break
-            action = self._baseline_mode(self._predicted_observation(aircraft, predicted[alive], last_action))
-            index = episode[alive]
-            result = self._simulate(aircraft, destination, motion[index, step, 0], motion[index, step, 1], action)
-            actions[alive, step] = action
-            aircraft_after[alive, step] = result.aircraft_state
-            destination_after[alive, step] = result.destination_state
+            action = self._baseline_mode(self._predicted_observation(aircraft, predicted, last_action))
+            result = self._simulate(aircraft, destination, motion[episode, step, 0], motion[episode, step, 1], action)
+            log.append((alive, action, result.aircraft_state, result.destination_state))
             success = result.outcome == Outcome.SUCCESS
             if bool(success.any()):
-                arrival[index[success], candidate[alive][success]] = step + 1
-                best.scatter_reduce_(0, index[success], candidate[alive][success], reduce=reduce)
-            # Still running: not ended by the simulator (success, airspace), the budget, or the candidate's limit.
-            running = ((result.outcome == Outcome.RUNNING) & (step + 1 < limit[alive])
-                       & (first_step[alive] + step + 1 < budget))
-            # A candidate on the far side of an episode's kept success can no longer be the one kept.
-            if self.keep == "earliest":
-                running &= candidate[alive] < best[index]
-            else:
-                running &= candidate[alive] > best[index]
-            alive = alive[running]
-            aircraft, destination = result.aircraft_state[running], result.destination_state[running]
-            last_action = action[running]
+                arrival[episode[success], candidate[success]] = step + 1
+                best.scatter_reduce_(0, episode[success], candidate[success], reduce=reduce)
+            # Still running: not ended by the simulator (success, airspace), the budget, or the candidate's limit;
+            # and not on the far side of its episode's kept success (it can no longer be the one kept).
+            running = (result.outcome == Outcome.RUNNING) & (step + 1 < stop)
+            running &= candidate < best[episode] if self.keep == "earliest" else candidate > best[episode]
+            aircraft, destination, last_action = result.aircraft_state, result.destination_state, action
+            if bool(running.all()):
+                continue
+            keep = running.nonzero().squeeze(-1)
+            alive, episode, candidate, predicted, stop = (
+                field[keep] for field in (alive, episode, candidate, predicted, stop))
+            aircraft, destination, last_action = aircraft[keep], destination[keep], last_action[keep]
+        if not log:
+            return
         # Episodes whose kept candidate is in this wave (they had none before it): keep that row's rollout.
         decided = (best[pending] >= wave.min()) & (best[pending] <= wave.max())
         position = torch.full((int(self.candidates.numel()),), -1, dtype=torch.long, device=device)
         position[wave] = torch.arange(size, device=device)
         kept_episode = pending[decided]
         kept_row = decided.nonzero().squeeze(-1) * size + position[best[kept_episode]]
-        record.action[kept_episode, :steps] = actions[kept_row]
-        record.aircraft_state[kept_episode, :steps] = aircraft_after[kept_row]
-        record.destination_state[kept_episode, :steps] = destination_after[kept_row]
+        episode_of_row = torch.full((pending.numel() * size,), -1, dtype=torch.long, device=device)
+        episode_of_row[kept_row] = kept_episode
+        rows, actions, aircraft_after, destination_after = (torch.cat(field) for field in zip(*log, strict=True))
+        step_of = torch.repeat_interleave(torch.arange(len(log), device=device),
+                                          torch.tensor([entry[0].numel() for entry in log], device=device))
+        target = episode_of_row[rows]
+        kept = target >= 0
+        target, step_of = target[kept], step_of[kept]
+        record.action[target, step_of] = actions[kept]
+        record.aircraft_state[target, step_of] = aircraft_after[kept]
+        record.destination_state[target, step_of] = destination_after[kept]
 
     def _simulate(
         self, aircraft: torch.Tensor, destination: torch.Tensor, destination_speed: torch.Tensor,

@@ -181,6 +181,7 @@ class Trainer:
             initial_selection_factor=method.initial_selection_factor, selection_decay=method.selection_decay,
             candidate_stride=method.candidate_stride, max_candidates=method.max_candidates, keep=method.keep,
             ppo_targets=self._ppo_targets, max_rows=self._storage_size(), seed=self.cfg.seed,
+            relabel_unfinished=method.relabel_unfinished, relabel_own_successes=method.relabel_own_successes,
         )
 
     def _ppo_targets(self, trajectories: TensorDictBase, valid: torch.Tensor) -> TensorDictBase:

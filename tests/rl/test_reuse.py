@@ -773,6 +773,77 @@ def test_kept_rows_are_in_the_state_dict_and_resume_is_exact(spanning, tmp_path)
     assert fresh.last_statistics()["train/reuse_episodes_carried"] == 0
 
 
+
+def ended_in(batch: TensorDict) -> set[int]:
+    """The episodes (trajectory ids) whose last row in ``batch`` is terminal: they end in this batch."""
+    traj_ids, done = batch.get(TRAJECTORY_KEY), batch["next", "done"].reshape(-1)
+    return {t for t in set(traj_ids.tolist()) if bool(done[(traj_ids == t).nonzero()[-1, 0]])}
+
+
+def test_without_relabel_unfinished_each_episode_is_searched_once_in_the_batch_where_it_ends(spanning):
+    algorithm_1, deferred = spanning.transform(), spanning.transform(relabel_unfinished=False)
+    searched = []
+    for batch in spanning.batches:
+        traj_ids = batch.get(TRAJECTORY_KEY)
+        episodes = sorted(set(traj_ids.tolist()), key=lambda t: int((traj_ids == t).nonzero()[0, 0]))
+        ended = ended_in(batch)
+        starts = torch.stack([spanning.start_of(t)["aircraft_state"] for t in episodes])
+        arrival, _ = brute_force_search(algorithm_1.candidates, starts, spanning.env.params)
+        winners = [t for t, ok in zip(episodes, (arrival > 0).any(-1).tolist(), strict=True) if ok]
+        spanning.received.clear()
+        algorithm_1.relabel(batch)
+        full, full_valid = spanning.received[0]  # Algorithm 1's re-played episodes: the winners, in batch order
+        spanning.received.clear()
+        out = deferred.relabel(batch)
+        stats = deferred.last_statistics()
+        assert stats["train/reuse_episodes_selected"] == len(episodes), "the selection itself is unchanged"
+        assert stats["train/reuse_episodes_searched"] == len(ended)
+        searched += sorted(ended)
+        # Relabelled: Algorithm 1's episodes of this batch that end in it, re-played the same way.
+        expected = [t for t in winners if t in ended]
+        assert stats["train/reuse_episodes_relabelled"] == len(expected)
+        assert int((~out["relabelled"]).sum()) == int((~torch.isin(traj_ids, torch.tensor(expected))).sum())
+        if not expected:
+            assert spanning.received == []
+            continue
+        got, got_valid = spanning.received[0]
+        keep = torch.tensor([t in ended for t in winners])
+        length = got_valid.shape[1]
+        assert torch.equal(got_valid, full_valid[keep][:, :length])
+        for key in ("action", "aircraft_state", "destination_state", ("next", "reward"), ("next", "done")):
+            assert torch.equal(got[key], full[key][keep][:, :length]), key
+    assert {len(ended_in(batch)) for batch in spanning.batches} != {0}
+    assert len(searched) == len(set(searched)), "no episode is searched twice"
+
+
+def test_without_relabel_own_successes_the_agents_successful_episodes_keep_its_rows(relabelled):
+    flat, out = relabelled.input.clone(), relabelled.out  # Algorithm 1's output on this batch
+    traj_ids, done = flat.get(TRAJECTORY_KEY), flat["next", "done"].reshape(-1)
+    # The episodes Algorithm 1 replaced: those without own rows in its output (observations match uniquely).
+    own = out[~out["relabelled"]]
+    source = (own["observation"][:, None] == flat["observation"][None]).all(-1).long().argmax(-1)
+    replaced = set(traj_ids.tolist()) - set(traj_ids[source].tolist())
+    # Two of them that end in this batch are marked as Z's own successes.
+    marked = sorted(t for t in replaced if bool(done[(traj_ids == t).nonzero()[-1, 0]]))[:2]
+    assert len(marked) == 2
+    last_rows = torch.stack([(traj_ids == t).nonzero()[-1, 0] for t in marked])
+    flat["next", "outcome"][last_rows] = int(Outcome.SUCCESS)
+    outcome = flat["next", "outcome"].reshape(-1)
+    successes = {t for t in set(traj_ids.tolist()) if done[(traj_ids == t).nonzero()[-1, 0]]
+                 and outcome[(traj_ids == t).nonzero()[-1, 0]] == Outcome.SUCCESS}  # the marked, and Z's own
+    transform = relabelled.collected.transform(relabel_own_successes=False)
+    shortcut = transform.relabel(flat)
+    stats, full = transform.last_statistics(), relabelled.transform.last_statistics()
+    assert stats["train/reuse_episodes_selected"] == full["train/reuse_episodes_selected"]
+    started = set(traj_ids[starts_of(flat)].tolist())  # every episode with a start here is selected (e = 1)
+    assert stats["train/reuse_episodes_searched"] == full["train/reuse_episodes_searched"] - len(successes & started)
+    assert stats["train/reuse_episodes_relabelled"] == full["train/reuse_episodes_relabelled"] - len(
+        successes & replaced)
+    # Z's rows of the marked episodes are stored verbatim, with the other own rows, in the collector's order.
+    kept = ~torch.isin(traj_ids, torch.tensor(sorted(replaced - successes)))
+    assert (shortcut[~shortcut["relabelled"]] == own_rows(flat[kept])).all()
+
+
 # ---------------------------------------------------------------------------- as a replay-buffer transform
 def test_extend_does_not_write_into_the_collector_batch(uniform):
     data = uniform.data.clone()
