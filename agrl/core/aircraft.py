@@ -171,7 +171,7 @@ def integrate_aircraft(
     axial_excess: torch.Tensor,
     normal_load: torch.Tensor,
     turn_direction: torch.Tensor,
-    dt: float,
+    dt: float | torch.Tensor,
     limits: AircraftLimits,
     gravity: float = GRAVITY,
 ) -> AircraftState:
@@ -182,7 +182,8 @@ def integrate_aircraft(
     but keeps a constant-rate turn on a closed circle instead of spiralling out.
     Speed and flight-path angle are clamped to the performance limits. The bank
     angle is set by the maneuver (the paper's discrete action model commands it).
-    Heading is left unwrapped: callers wrap it where they compare angles.
+    Heading is left unwrapped: callers wrap it where they compare angles. ``dt`` may be a per-row tensor: a row
+    with ``dt = 0`` keeps its state exactly (the simulator freezes finished rows so), except the bank.
     """
     loads = load_factors_and_bank(state.flight_path_angle, axial_excess, normal_load, turn_direction)
     _, _, _, speed_rate, flight_path_rate, heading_rate = point_mass_derivatives(

@@ -65,7 +65,6 @@ __all__ = ["Counters", "Trainer", "TrainingDiverged"]
 log = logging.getLogger("agrl.train")
 
 
-
 @dataclass
 class Counters:
     iteration: int = 0
