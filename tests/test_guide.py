@@ -92,3 +92,23 @@ def test_bad_questions_raise_one_line_errors():
         guide.instruct_batch(np.zeros((3, 6)), batch[1], np.zeros(3, np.int64))
     with pytest.raises(GuideError, match=r"destination_state of shape \(2, 4\) is not allowed: one row per"):
         guide.instruct_batch(batch[0], np.zeros((2, 4)), np.zeros(3, np.int64))
+
+
+@pytest.mark.parametrize("activation", ["tanh", "relu", "elu"])
+def test_batched_layers_compute_the_actor_network(activation):
+    """The batched guide's layers (addmm into reused buffers, in-place activations) are the actor's network."""
+    from agrl.core.observation import OBSERVATION_SIZE
+    from agrl.guide import BatchedLayers
+    from agrl.rl.models import make_actor
+
+    torch.manual_seed(0)
+    actor = make_actor([64, 32], activation)
+    network = next(module for module in actor.modules() if isinstance(module, torch.nn.Sequential))
+    with torch.no_grad():
+        for parameter in network.parameters():  # large enough weights that every activation saturates somewhere
+            parameter.normal_(0.0, 1.0)
+    layers = BatchedLayers(network, activation)
+    for rows in (5, 300, 5):  # a new batch size, then back: the buffers follow
+        observation = 3 * torch.randn(rows, OBSERVATION_SIZE)
+        with torch.inference_mode():
+            torch.testing.assert_close(layers(observation), network(observation), atol=1e-5, rtol=1e-5)
