@@ -10,6 +10,11 @@ with ``--compile``, the ``torch.compile`` of the simulation step). Prints one ``
 line per trainer and a ``ratio`` line (agrl's decisions/s over stable-baselines3's; ``update_ratio`` and
 ``collection_ratio`` per part).
 
+``--trainers ... floor`` adds a third line: the same arithmetic with nothing around it (:func:`bench_floor`),
+plain PyTorch with no TensorDict, no loss module, no collector and no environment bookkeeping. It bounds what
+any trainer can reach on equal work on this machine, so a ``ratio_floor_over_sb3`` line says how far ahead of
+stable-baselines3 equal work can be at all.
+
 stable-baselines3 is the ``bench`` extra (``pip install 'agrl[bench]'``; it leaves torch alone). It
 sees the env through :class:`Sb3VectorEnv`, a thin adapter from
 :class:`agrl.envs.gym_vector.GuidanceVectorEnv` (same-step autoreset) to its ``VecEnv`` interface.
@@ -181,6 +186,108 @@ def bench_agrl(num_envs: int, steps: int, minibatch: int, iterations: int, compi
     return iteration_record("agrl", collection[1:], update[1:], num_envs * steps)
 
 
+def bench_floor(num_envs: int, steps: int, minibatch: int, iterations: int, compile: bool, seed: int,
+                task: dict) -> dict:
+    """The iteration's arithmetic alone, in plain PyTorch: a lower bound for any trainer of the same work.
+
+    Collection: per decision, the observation (:func:`agrl.core.observation.policy_observation`), the actor's
+    network, a categorical sample and the simulator (:class:`agrl.core.simulation.DecisionSimulator`, compiled
+    as in training); no rewards, resets or storage beyond three tensors. Update: ``epochs`` passes of
+    ``minibatch`` rows through actor and critic (agrl's network sizes and activation, from ``conf/``), the
+    clipped PPO objective with normalised advantages, a smooth-L1 value loss and the entropy bonus, gradient
+    clipping and fused Adam, as :class:`torchrl.objectives.ClipPPOLoss` and :func:`agrl.rl.ppo.ppo_update`
+    compute them; advantages are random (GAE costs a few milliseconds).
+    """
+    import torch
+    from torchrl.modules import MLP
+
+    from agrl.config import compose_config, guidance_parameters, load_config
+    from agrl.core.initial_states import sample_initial_aircraft
+    from agrl.core.observation import OBSERVATION_SIZE, policy_observation
+    from agrl.core.simulation import DecisionSimulator
+    from agrl.envs.guidance import NUM_ACTIONS
+    from agrl.rl.models import ACTIVATIONS
+
+    config = load_config(compose_config(f"task={task['task']}"))
+    ppo, agent = config.ppo, config.agent
+    params = guidance_parameters(f"task={task['task']}", compile=compile)
+    simulation = params.simulation
+    generator = torch.Generator().manual_seed(seed)
+    torch.manual_seed(seed)
+    activation = ACTIVATIONS[agent.activation]
+    actor = MLP(in_features=OBSERVATION_SIZE, out_features=NUM_ACTIONS, num_cells=list(agent.actor_hidden),
+                activation_class=activation)
+    critic = MLP(in_features=OBSERVATION_SIZE, out_features=1, num_cells=list(agent.critic_hidden),
+                 activation_class=activation)
+    parameters = [*actor.parameters(), *critic.parameters()]
+    optimizer = torch.optim.Adam(parameters, lr=ppo.learning_rate, eps=1e-5, fused=True)
+    simulator = DecisionSimulator(simulation, params.maneuvers.controls(), compile=compile)
+    destination = torch.tensor(params.destination.start).expand(num_envs, 4).clone()
+    speed, turn_rate = params.destination.initial_motion(num_envs, generator, torch.device("cpu"))
+    aircraft = sample_initial_aircraft(num_envs, params.initial_state, destination, generator)
+    last_action = torch.zeros(num_envs, dtype=torch.int64)
+
+    def collect() -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        nonlocal aircraft, destination, last_action
+        observations, actions, log_probs = [], [], []
+        with torch.no_grad():
+            for _ in range(steps):
+                observation = policy_observation(aircraft, destination, last_action, simulation.airspace,
+                                                 simulation.limits)
+                log_prob = torch.log_softmax(actor(observation), -1)
+                action = torch.multinomial(log_prob.exp(), 1).squeeze(-1)
+                observations.append(observation)
+                actions.append(action)
+                log_probs.append(log_prob.gather(-1, action.unsqueeze(-1)).squeeze(-1))
+                aircraft, destination, _ = simulator(aircraft, destination, speed, turn_rate, action)
+                last_action = action
+        return torch.cat(observations), torch.cat(actions), torch.cat(log_probs)
+
+    def update(observations: torch.Tensor, actions: torch.Tensor, behaviour_log_probs: torch.Tensor) -> None:
+        rows = len(observations)
+        advantages, value_targets = torch.randn(rows, generator=generator), torch.randn(rows, generator=generator)
+        for _ in range(ppo.epochs):
+            order = torch.randperm(rows, generator=generator)
+            for start in range(0, rows - minibatch + 1, minibatch):
+                index = order[start:start + minibatch]
+                log_prob_all = torch.log_softmax(actor(observations[index]), -1)
+                log_prob = log_prob_all.gather(-1, actions[index].unsqueeze(-1)).squeeze(-1)
+                advantage = advantages[index]
+                advantage = (advantage - advantage.mean()) / advantage.std().clamp_min(1e-6)
+                ratio = (log_prob - behaviour_log_probs[index]).exp()
+                objective = torch.min(ratio * advantage,
+                                      ratio.clamp(1 - ppo.clip_epsilon, 1 + ppo.clip_epsilon) * advantage)
+                entropy = -(log_prob_all.exp() * log_prob_all).sum(-1).mean()
+                value_loss = torch.nn.functional.smooth_l1_loss(critic(observations[index]).squeeze(-1),
+                                                                value_targets[index])
+                loss = -objective.mean() + ppo.critic_coeff * value_loss - ppo.entropy_coeff * entropy
+                optimizer.zero_grad(set_to_none=True)
+                loss.backward()
+                torch.nn.utils.clip_grad_norm_(parameters, ppo.max_grad_norm)
+                optimizer.step()
+
+    collection, update_time = [], []
+    for _ in range(iterations + 1):  # the first one carries the simulator's compilation: left out
+        start = time.perf_counter()
+        batch = collect()
+        middle = time.perf_counter()
+        update(*batch)
+        collection.append(middle - start)
+        update_time.append(time.perf_counter() - middle)
+    return iteration_record("floor (plain PyTorch)", collection[1:], update_time[1:], num_envs * steps)
+
+
+TRAINERS = {"agrl": bench_agrl, "stable-baselines3": bench_sb3, "floor": bench_floor}
+
+
+def _ratio(name: str, numerator: dict, sb3: dict, args, threads: int, load: float) -> dict:
+    return {"name": name, "value": round(numerator["decisions_per_second"] / sb3["decisions_per_second"], 3),
+            "unit": "x", "update_ratio": round(sb3["update_s"] / numerator["update_s"], 3),
+            "collection_ratio": round(sb3["collection_s"] / numerator["collection_s"], 3),
+            "num_envs": args.num_envs, "steps": args.steps, "compile": args.compile, "threads": threads,
+            "load_average_1min_at_start": round(load, 2), "load_average_1min_at_end": round(os.getloadavg()[0], 2)}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m agrl.bench_peer", description=__doc__.splitlines()[0])
     parser.add_argument("--num-envs", type=int, default=512)
@@ -190,8 +297,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--compile", action=argparse.BooleanOptionalAction, default=True,
                         help="fuse the simulation step with torch.compile in both (default on, as training)")
     parser.add_argument("--threads", type=int, default=None, help="torch threads for both (default torch's)")
-    parser.add_argument("--trainers", nargs="+", choices=("agrl", "stable-baselines3"),
-                        default=["agrl", "stable-baselines3"], help="which trainers to time (default both)")
+    parser.add_argument("--trainers", nargs="+", choices=tuple(TRAINERS), default=["agrl", "stable-baselines3"],
+                        help="which trainers to time (default agrl and stable-baselines3; floor: the same "
+                             "arithmetic in plain PyTorch, a lower bound)")
     parser.add_argument("--task", default="fixed")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
@@ -209,19 +317,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     load = os.getloadavg()[0]
     records = {}
     for trainer in args.trainers:
-        bench = bench_agrl if trainer == "agrl" else bench_sb3
-        records[trainer] = bench(args.num_envs, args.steps, args.minibatch, args.iterations, args.compile,
-                                 args.seed, task)
+        records[trainer] = TRAINERS[trainer](args.num_envs, args.steps, args.minibatch, args.iterations,
+                                             args.compile, args.seed, task)
         print(json.dumps(records[trainer]), flush=True)
-    if len(records) == 2:
-        agrl, sb3 = records["agrl"], records["stable-baselines3"]
-        print(json.dumps({"name": "ratio_agrl_over_sb3", "value": round(agrl["decisions_per_second"]
-                                                                         / sb3["decisions_per_second"], 3),
-                          "unit": "x", "update_ratio": round(sb3["update_s"] / agrl["update_s"], 3),
-                          "collection_ratio": round(sb3["collection_s"] / agrl["collection_s"], 3),
-                          "num_envs": args.num_envs, "steps": args.steps, "compile": args.compile,
-                          "threads": torch.get_num_threads(), "load_average_1min_at_start": round(load, 2),
-                          "load_average_1min_at_end": round(os.getloadavg()[0], 2)}), flush=True)
+    if "stable-baselines3" in records:
+        for trainer in ("agrl", "floor"):
+            if trainer in records:
+                print(json.dumps(_ratio(f"ratio_{trainer}_over_sb3", records[trainer], records["stable-baselines3"],
+                                        args, torch.get_num_threads(), load)), flush=True)
     return 0
 
 
