@@ -59,6 +59,7 @@ def ppo_update(
     """
     totals: dict[str, float] = {}
     updates = 0
+    parameters = list(loss.parameters())  # once: loss.parameters() walks every submodule of actor and critic
     for _ in range(epochs):
         for batch in buffer:
             losses = loss(batch)
@@ -67,7 +68,7 @@ def ppo_update(
                 raise TrainingDiverged(f"non-finite loss ({total.item()}) {where}, update {updates + 1}")
             optimizer.zero_grad(set_to_none=True)
             total.backward()
-            gradient_norm = torch.nn.utils.clip_grad_norm_(loss.parameters(), max_grad_norm)
+            gradient_norm = torch.nn.utils.clip_grad_norm_(parameters, max_grad_norm)
             if not torch.isfinite(gradient_norm):
                 raise TrainingDiverged(f"non-finite gradient {where}, update {updates + 1}")
             optimizer.step()
