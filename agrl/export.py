@@ -1,8 +1,10 @@
-"""``python -m agrl.export SOURCE DESTINATION [--format checkpoint|onnx|torch_export]``: ship a trained agent.
+"""``python -m agrl.export SOURCE [SOURCE ...] DESTINATION [--format checkpoint|onnx|torch_export]``: ship a
+trained agent.
 
 - ``checkpoint`` (default): a slim checkpoint (actor, critic, resolved config and counters; no
   optimiser, RNG or collector state), e.g. to ship a baseline usable as ``method.baseline=<file>``;
-  ``--evaluation eval.json`` embeds an evaluation summary;
+  ``--evaluation eval.json`` embeds an evaluation summary. Several sources: one agent whose weights are
+  their average (:func:`agrl.rl.checkpoint.average_agents`, for the seeds of one fine-tune);
 - ``onnx``: the deterministic policy from the raw state (:class:`agrl.guide.GuidePolicy`: the observation
   function, the actor's network and the argmax) as an ONNX graph, for onnxruntime or any ONNX runtime;
 - ``torch_export``: the same graph as a ``torch.export`` archive (``.pt2``).
@@ -22,7 +24,7 @@ from pathlib import Path
 
 import torch
 
-from agrl.rl.checkpoint import CheckpointError, export_agent
+from agrl.rl.checkpoint import CheckpointError, average_agents, export_agent
 
 FORMATS = ("checkpoint", "onnx", "torch_export")
 SUFFIXES = {"onnx": ".onnx", "torch_export": ".pt2"}
@@ -74,7 +76,9 @@ def export_onnx(source: str | Path, destination: str | Path) -> Path:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m agrl.export", description=__doc__.splitlines()[0])
-    parser.add_argument("source", help="a checkpoint file, a run directory or 'baseline'")
+    parser.add_argument("sources", nargs="+", metavar="source",
+                        help="a checkpoint file, a run directory or 'baseline'; several (format checkpoint): one agent "
+                             "with their averaged weights")
     parser.add_argument("destination", help="where to write the export (.onnx for onnx, .pt2 for torch_export)")
     parser.add_argument("--format", choices=FORMATS, default="checkpoint",
                         help="checkpoint (slim checkpoint, default), onnx or torch_export")
@@ -86,17 +90,24 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"destination={args.destination!r} is not allowed: format={args.format} writes a {suffix} file")
     if args.evaluation and args.format != "checkpoint":
         parser.error(f"--evaluation={args.evaluation!r} is not allowed: only with --format checkpoint")
+    if len(args.sources) > 1 and args.format != "checkpoint":
+        parser.error(f"{len(args.sources)} sources are not allowed with --format {args.format}: average them into a "
+                     "checkpoint first (--format checkpoint), then export that")
+    source = args.sources[0]
     try:
         if args.format == "onnx":
-            path = export_onnx(args.source, args.destination)
+            path = export_onnx(source, args.destination)
         elif args.format == "torch_export":
-            path = export_torch(args.source, args.destination)
+            path = export_torch(source, args.destination)
         else:
             extra = {}
             if args.evaluation:
                 with open(args.evaluation) as file:
                     extra["evaluation"] = json.load(file)
-            path = export_agent(args.source, args.destination, **extra)
+            if len(args.sources) > 1:
+                path = average_agents(args.sources, args.destination, **extra)
+            else:
+                path = export_agent(source, args.destination, **extra)
     except (CheckpointError, OSError, json.JSONDecodeError) as error:
         print(f"agrl.export: error: {error}", file=sys.stderr)
         return 2

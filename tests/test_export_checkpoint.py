@@ -9,7 +9,7 @@ import pytest
 import torch
 from torch.serialization import get_unsafe_globals_in_checkpoint
 
-from agrl.rl.checkpoint import load_checkpoint
+from agrl.rl.checkpoint import load_checkpoint, save_checkpoint
 from agrl.rl.trainer import Trainer
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
@@ -69,3 +69,50 @@ def test_a_missing_source_is_one_line(exported):
     lines = [line for line in result.stderr.splitlines() if line.strip()]
     assert lines == [f"agrl.export: error: {exported['directory'] / 'missing.pt'}: no such checkpoint file"]
     assert not (exported["directory"] / "never.pt").exists()
+
+
+def _shifted_copy(source, destination, shift: float, **changes):
+    """``source``'s checkpoint with every actor and critic weight moved by ``shift`` (a second agent to average)."""
+    payload = load_checkpoint(source)
+    for part in ("actor", "critic"):
+        payload[part] = {name: tensor + shift for name, tensor in payload[part].items()}
+    payload.update(changes)
+    return save_checkpoint(payload, destination)
+
+
+def test_several_sources_give_one_agent_with_their_mean_weights(tiny_run, tmp_path, capsys):
+    from agrl.export import main
+    from agrl.guide import Guide
+
+    source = tiny_run.run_dir / "checkpoints" / "latest.pt"
+    other = _shifted_copy(source, tmp_path / "other.pt", 1.0)
+    third = _shifted_copy(source, tmp_path / "third.pt", -0.25)
+    assert main([str(tiny_run.run_dir), str(other), str(third), str(tmp_path / "soup.pt")]) == 0
+    assert capsys.readouterr().out.strip() == str(tmp_path / "soup.pt")
+    soup = load_checkpoint(tmp_path / "soup.pt")
+    full = load_checkpoint(source)
+    assert get_unsafe_globals_in_checkpoint(tmp_path / "soup.pt") == []
+    assert set(soup) == (SLIM_KEYS - {"evaluation"}) | {"averaged_from"}
+    for part in ("actor", "critic"):
+        for name, tensor in full[part].items():  # the mean of w, w + 1 and w - 0.25
+            torch.testing.assert_close(soup[part][name], tensor + 0.25, msg=f"{part}[{name}]")
+            assert soup[part][name].dtype == tensor.dtype
+    assert soup["config"] == full["config"] and soup["exported_from"] == str(source)
+    assert soup["averaged_from"] == [str(source), str(other), str(third)]
+    Guide.load(tmp_path / "soup.pt")  # an agent like any other
+
+
+def test_averaging_agents_of_different_networks_is_one_line(tiny_run, tmp_path, capsys):
+    from agrl.export import main
+
+    source = tiny_run.run_dir / "checkpoints" / "latest.pt"
+    payload = load_checkpoint(source)
+    payload["critic"] = {**payload["critic"], "0.weight": torch.zeros(64, 23)}
+    save_checkpoint(payload, tmp_path / "narrow.pt")
+    assert main([str(source), str(tmp_path / "narrow.pt"), str(tmp_path / "soup.pt")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and f"{tmp_path / 'narrow.pt'}: its critic network differs from" in lines[0]
+    assert "0.weight (64, 23)" in lines[0] and not (tmp_path / "soup.pt").exists()
+    with pytest.raises(SystemExit):
+        main([str(source), str(source), str(tmp_path / "soup.onnx"), "--format", "onnx"])
+    assert "2 sources are not allowed with --format onnx" in capsys.readouterr().err

@@ -153,6 +153,9 @@ def resolve_checkpoint_path(reference: str | Path) -> Path:
     return path
 
 
+SLIM_KEYS = ("actor", "critic", "config", "config_yaml", "counters")
+
+
 def export_agent(source: str | Path, destination: str | Path, **extra: Any) -> Path:
     """Write a slim copy of a training checkpoint: networks, config and provenance, no optimiser or RNG.
 
@@ -160,7 +163,37 @@ def export_agent(source: str | Path, destination: str | Path, **extra: Any) -> P
     """
     source = resolve_checkpoint_path(source)
     payload = load_checkpoint(source, required=("actor", "critic", "config"))
-    slim = {key: payload[key] for key in ("actor", "critic", "config", "config_yaml", "counters") if key in payload}
+    slim = {key: payload[key] for key in SLIM_KEYS if key in payload}
     slim["exported_from"] = str(source)
+    slim.update(extra)
+    return save_checkpoint(slim, destination)
+
+
+def average_agents(sources: list[str | Path], destination: str | Path, **extra: Any) -> Path:
+    """Write one slim checkpoint whose actor and critic weights are the element-wise means of ``sources``'.
+
+    Meant for agents fine-tuned from one start, such as the seeds of ``+experiment=switch_finetune``: their
+    weights stay close, and their average (a "model soup") is an agent of its own, measured in
+    docs/results/switch_cost.md. The config and counters are the first source's, ``exported_from`` names it and
+    ``averaged_from`` lists them all. Agents whose networks differ in any parameter's name or shape are refused.
+    """
+    paths = [resolve_checkpoint_path(source) for source in sources]
+    payloads = [load_checkpoint(path, required=("actor", "critic", "config")) for path in paths]
+    first = payloads[0]
+    for path, payload in zip(paths[1:], payloads[1:], strict=True):
+        for part in ("actor", "critic"):
+            shapes = {name: tuple(tensor.shape) for name, tensor in payload[part].items()}
+            expected = {name: tuple(tensor.shape) for name, tensor in first[part].items()}
+            if shapes != expected:
+                differences = sorted(set(shapes.items()) ^ set(expected.items()))
+                detail = "; ".join(f"{name} {shape}" for name, shape in differences[:4])
+                raise CheckpointError(f"{path}: its {part} network differs from {paths[0]}'s ({detail}); only agents "
+                                      "of one architecture can be averaged")
+    slim = {key: first[key] for key in SLIM_KEYS if key in first}
+    for part in ("actor", "critic"):
+        slim[part] = {name: torch.stack([payload[part][name] for payload in payloads]).mean(0).to(tensor.dtype)
+                      for name, tensor in first[part].items()}
+    slim["exported_from"] = str(paths[0])
+    slim["averaged_from"] = [str(path) for path in paths]
     slim.update(extra)
     return save_checkpoint(slim, destination)
