@@ -122,13 +122,18 @@ def load_checkpoint(path: str | Path, required: tuple[str, ...] = ("actor",)) ->
     return payload
 
 
+def _layout_differences(expected: dict[str, torch.Tensor], found: dict[str, torch.Tensor]) -> str:
+    """The first few parameters whose name or shape differ between two state dicts ("" if none), for one line."""
+    expected_shapes = {name: tuple(tensor.shape) for name, tensor in expected.items()}
+    found_shapes = {name: tuple(tensor.shape) for name, tensor in found.items()}
+    differences = sorted(set(expected_shapes.items()) ^ set(found_shapes.items()))
+    return "; ".join(f"{name} {shape}" for name, shape in differences[:4])
+
+
 def load_module_state(module: torch.nn.Module, state: dict[str, torch.Tensor], path: Path, what: str) -> None:
     """Load ``state`` into ``module``, turning a layout mismatch into a one-line :class:`CheckpointError`."""
-    expected = {name: tuple(tensor.shape) for name, tensor in module.state_dict().items()}
-    found = {name: tuple(tensor.shape) for name, tensor in state.items()}
-    if expected != found:
-        differences = sorted(set(expected.items()) ^ set(found.items()))
-        detail = "; ".join(f"{name} {shape}" for name, shape in differences[:4])
+    detail = _layout_differences(module.state_dict(), state)
+    if detail:
         raise CheckpointError(
             f"{path}: the {what} network does not match this configuration (differing parameters: {detail})"
         )
@@ -182,11 +187,8 @@ def average_agents(sources: list[str | Path], destination: str | Path, **extra: 
     first = payloads[0]
     for path, payload in zip(paths[1:], payloads[1:], strict=True):
         for part in ("actor", "critic"):
-            shapes = {name: tuple(tensor.shape) for name, tensor in payload[part].items()}
-            expected = {name: tuple(tensor.shape) for name, tensor in first[part].items()}
-            if shapes != expected:
-                differences = sorted(set(shapes.items()) ^ set(expected.items()))
-                detail = "; ".join(f"{name} {shape}" for name, shape in differences[:4])
+            detail = _layout_differences(first[part], payload[part])
+            if detail:
                 raise CheckpointError(f"{path}: its {part} network differs from {paths[0]}'s ({detail}); only agents "
                                       "of one architecture can be averaged")
     slim = {key: first[key] for key in SLIM_KEYS if key in first}
