@@ -167,7 +167,11 @@ def export_agent(source: str | Path, destination: str | Path, **extra: Any) -> P
     This is what ships as ``agrl/baselines/fixed_baseline.pt`` (about a sixth of a full checkpoint).
     """
     source = resolve_checkpoint_path(source)
-    payload = load_checkpoint(source, required=("actor", "critic", "config"))
+    return _save_slim(load_checkpoint(source, required=("actor", "critic", "config")), source, destination, extra)
+
+
+def _save_slim(payload: dict, source: Path, destination: str | Path, extra: dict[str, Any]) -> Path:
+    """Write ``payload``'s :data:`SLIM_KEYS` with ``exported_from`` = ``source`` and ``extra`` to ``destination``."""
     slim = {key: payload[key] for key in SLIM_KEYS if key in payload}
     slim["exported_from"] = str(source)
     slim.update(extra)
@@ -191,11 +195,7 @@ def average_agents(sources: list[str | Path], destination: str | Path, **extra: 
             if detail:
                 raise CheckpointError(f"{path}: its {part} network differs from {paths[0]}'s ({detail}); only agents "
                                       "of one architecture can be averaged")
-    slim = {key: first[key] for key in SLIM_KEYS if key in first}
-    for part in ("actor", "critic"):
-        slim[part] = {name: torch.stack([payload[part][name] for payload in payloads]).mean(0).to(tensor.dtype)
-                      for name, tensor in first[part].items()}
-    slim["exported_from"] = str(paths[0])
-    slim["averaged_from"] = [str(path) for path in paths]
-    slim.update(extra)
-    return save_checkpoint(slim, destination)
+    averaged = {part: {name: torch.stack([payload[part][name] for payload in payloads]).mean(0).to(tensor.dtype)
+                       for name, tensor in first[part].items()} for part in ("actor", "critic")}
+    return _save_slim({**first, **averaged}, paths[0], destination,
+                      {"averaged_from": [str(path) for path in paths], **extra})
