@@ -208,8 +208,11 @@ class AgentConfig:
     actor_hidden: list[int] = MISSING
     critic_hidden: list[int] = MISSING
     activation: str = MISSING
+    observation: str = MISSING  # relative or absolute; see saved_agent_config for checkpoints without it
 
     def __post_init__(self) -> None:
+        _require(self.observation in ("relative", "absolute"), "agent.observation", self.observation,
+                 "relative or absolute")
         _require(all(width > 0 for width in self.actor_hidden), "agent.actor_hidden", self.actor_hidden,
                  "positive layer widths")
         _require(all(width > 0 for width in self.critic_hidden), "agent.critic_hidden", self.critic_hidden,
@@ -429,6 +432,12 @@ def validated_section(schema, values: dict) -> Any:
         while cause is not None and not isinstance(cause, ConfigError):
             cause = cause.__cause__ or cause.__context__
         raise (cause or ConfigError(str(error).splitlines()[0])) from None
+
+
+def saved_agent_config(saved: dict) -> AgentConfig:
+    """A checkpoint's saved ``agent`` section, validated. Checkpoints written before ``agent.observation``
+    existed (the shipped baseline among them) have no entry: their agents read the relative observation."""
+    return validated_section(AgentConfig, {"observation": "relative", **saved["agent"]})
 
 
 def saved_guidance_parameters(saved: dict, task: TaskConfig | None = None,

@@ -18,10 +18,10 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
 from agrl.config import (
-    AgentConfig,
     ConfigError,
     TaskConfig,
     load_config,
+    saved_agent_config,
     saved_guidance_parameters,
     task_label,
     validated_section,
@@ -35,8 +35,8 @@ def load_agent(reference: str, device: torch.device | str = "cpu"):
 
     path = resolve_checkpoint_path(reference)
     payload = load_checkpoint(path, required=("actor", "config"))
-    agent = validated_section(AgentConfig, payload["config"]["agent"])
-    actor = make_actor(agent.actor_hidden, agent.activation, device)
+    agent = saved_agent_config(payload["config"])
+    actor = make_actor(agent.actor_hidden, agent.activation, device, agent.observation)
     load_module_state(actor, payload["actor"], path, "actor")
     return actor.eval(), payload["config"], path
 
@@ -50,7 +50,8 @@ def evaluate(cfg) -> dict[str, Any]:
     actor, saved, path = load_agent(cfg.checkpoint, device)
     task = cfg.task if cfg.task is not None else validated_section(TaskConfig, saved["task"])
     params = saved_guidance_parameters(saved, task)
-    env = GuidanceEnv(params, num_envs=cfg.episodes, device=device, seed=cfg.seed)
+    observation = saved_agent_config(saved).observation
+    env = GuidanceEnv(params, num_envs=cfg.episodes, device=device, seed=cfg.seed, observation=observation)
     records = run_episodes(env, actor, record_trajectories=cfg.trajectories > 0)
     summary = summarise(records)
     summary["ms_per_instruction"] = instruction_latency_ms(env, actor)

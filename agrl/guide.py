@@ -130,10 +130,15 @@ def _from_metadata(text: str, path: Path) -> tuple[Airspace, AircraftLimits, str
 
 def load_policy(reference: str | Path = "baseline") -> tuple[GuidePolicy, str, str]:
     """(:class:`GuidePolicy`, activation name, checkpoint path) of ``baseline``, a checkpoint or a run directory."""
-    from agrl.config import saved_guidance_parameters
+    from agrl.config import saved_agent_config, saved_guidance_parameters
     from agrl.evaluate import load_agent
 
     actor, saved, path = load_agent(str(reference))
+    observation = saved_agent_config(saved).observation
+    if observation != "relative":
+        # The guide's single-query path, ONNX and torch.export graphs compute the relative observation only.
+        raise GuideError(f"{path}: agent.observation={observation} is not allowed for a guide or an export: "
+                         "relative only (evaluate this agent with python -m agrl.evaluate)")
     params = saved_guidance_parameters(saved)
     networks = [module for module in actor.modules() if isinstance(module, nn.Sequential)]
     policy = GuidePolicy(networks[0], params.simulation.airspace, params.simulation.limits).eval()

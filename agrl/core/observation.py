@@ -10,7 +10,15 @@ poorly here (an agent must learn the same geometry at every place in the
 airspace), so the destination is described in the aircraft's frame (distance,
 bearing, relative altitude and heading) and the aircraft in the destination's
 frame (which side of the approach it is on). The aircraft's own position in the
-airspace stays in, because walls and floor end an episode.
+airspace stays in, because walls and floor end an episode. This is the default
+(``agent.observation=relative``).
+
+:func:`absolute_observation` is equation 4 itself, normalised: the aircraft's and
+the destination's positions and headings in the airspace (``agent.observation=absolute``).
+A baseline trained on the fixed destination at the origin then has only ever seen
+the destination at (0, 0, 0, 0); the paper's policy reuse queries it in the
+predicted destination's frame (:func:`in_destination_frame`, section 5.1), while
+pre-training hands Z weights that never learnt to read the destination's fields.
 """
 
 from __future__ import annotations
@@ -47,6 +55,42 @@ OBSERVATION_SIZE = len(OBSERVATION_FEATURES)
 # 200 m altitude band into 4 % of their range).
 NEAR_ALTITUDE_SCALE = 500.0  # m
 NEAR_DISTANCE_SCALE = 2_000.0  # m
+
+
+#: Equation 4's fields as the network sees them with ``agent.observation=absolute``.
+ABSOLUTE_OBSERVATION_FEATURES = (
+    "x",  # mapped to [-1, 1] over the airspace
+    "y",
+    "altitude",  # mapped to [-1, 1] over the airspace height
+    "speed",  # mapped to [-1, 1] over the speed limits
+    "flight_path_angle",  # / max flight-path angle
+    "heading_sin",  # psi_a
+    "heading_cos",
+    "bank",  # / 90 deg
+    "destination_x",  # mapped like the aircraft's
+    "destination_y",
+    "destination_altitude",
+    "destination_heading_sin",  # psi_d
+    "destination_heading_cos",
+    # The same positions on a fine scale, tanh(x / 2 km), tanh(z / 500 m): on the airspace-wide scale alone the
+    # 1 km x 200 m tolerance region near the origin (the fixed destination) is 1-4 % of an input's range.
+    "x_near",
+    "y_near",
+    "altitude_near",
+    "destination_x_near",
+    "destination_y_near",
+    "destination_altitude_near",
+) + tuple(f"last_action_{name}" for name in MANEUVER_NAMES)
+
+#: ``agent.observation`` -> the feature names of its policy input.
+OBSERVATION_KINDS = {"relative": OBSERVATION_FEATURES, "absolute": ABSOLUTE_OBSERVATION_FEATURES}
+
+
+def observation_size(kind: str) -> int:
+    """Width of the policy input of observation ``kind`` (relative or absolute)."""
+    if kind not in OBSERVATION_KINDS:
+        raise ValueError(f"observation={kind!r} is not allowed: one of {', '.join(OBSERVATION_KINDS)}")
+    return len(OBSERVATION_KINDS[kind])
 
 
 def _to_unit_interval(value: torch.Tensor, low: float, high: float) -> torch.Tensor:
@@ -99,3 +143,76 @@ def policy_observation(
     maneuvers = torch.arange(len(MANEUVER_NAMES), device=last_action.device)
     one_hot = (last_action.long().unsqueeze(-1) == maneuvers).to(features.dtype)
     return torch.cat((features, one_hot), dim=-1)
+
+
+def absolute_observation(
+    aircraft_state: torch.Tensor,
+    destination_state: torch.Tensor,
+    last_action: torch.Tensor,
+    airspace: Airspace,
+    limits: AircraftLimits,
+) -> torch.Tensor:
+    """Equation 4's state vector ``S_t``, normalised: ``(..., len(ABSOLUTE_OBSERVATION_FEATURES))``.
+
+    Each input is a function of one field of ``S_t``: positions mapped to [-1, 1] over the airspace and again
+    on a fine scale (``tanh(x / 2 km)``, ``tanh(z / 500 m)``), headings as sine and cosine. No relative quantity
+    is computed, so the network must learn the geometry itself (the paper's input interface).
+    """
+    x, y, z, speed, flight_path_angle, heading, bank = aircraft_state.unbind(-1)
+    dest_x, dest_y, dest_z, dest_heading = destination_state.unbind(-1)
+    features = torch.stack(
+        (
+            _to_unit_interval(x, airspace.x_min, airspace.x_max),
+            _to_unit_interval(y, airspace.y_min, airspace.y_max),
+            _to_unit_interval(z, airspace.z_min, airspace.z_max),
+            _to_unit_interval(speed, limits.min_speed, limits.max_speed),
+            flight_path_angle / limits.max_flight_path_angle,
+            torch.sin(heading),
+            torch.cos(heading),
+            bank / (0.5 * torch.pi),
+            _to_unit_interval(dest_x, airspace.x_min, airspace.x_max),
+            _to_unit_interval(dest_y, airspace.y_min, airspace.y_max),
+            _to_unit_interval(dest_z, airspace.z_min, airspace.z_max),
+            torch.sin(dest_heading),
+            torch.cos(dest_heading),
+            torch.tanh(x / NEAR_DISTANCE_SCALE),
+            torch.tanh(y / NEAR_DISTANCE_SCALE),
+            torch.tanh(z / NEAR_ALTITUDE_SCALE),
+            torch.tanh(dest_x / NEAR_DISTANCE_SCALE),
+            torch.tanh(dest_y / NEAR_DISTANCE_SCALE),
+            torch.tanh(dest_z / NEAR_ALTITUDE_SCALE),
+        ),
+        dim=-1,
+    )
+    maneuvers = torch.arange(len(MANEUVER_NAMES), device=last_action.device)
+    one_hot = (last_action.long().unsqueeze(-1) == maneuvers).to(features.dtype)
+    return torch.cat((features, one_hot), dim=-1)
+
+
+def in_destination_frame(
+    aircraft_state: torch.Tensor, destination_state: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """The aircraft seen from ``destination_state`` placed at the origin, heading 0 (section 5.1).
+
+    The paper maps the predicted destination to (0, 0, 0, 0), the fixed destination its baseline was trained
+    on, and the aircraft to ``(x_a - x_d, y_a - y_d, z_a - z_d, psi_a - psi_d)``. This function also rotates the
+    horizontal offset by ``-psi_d`` (this project's choice): with the heading alone shifted, a destination
+    heading other than 0 would put the approach on the wrong side. For ``psi_d = 0`` (the uniform destination)
+    the two are the same. Returns ``(aircraft_state, destination_state)`` with the destination all zeros.
+    """
+    x, y, z, speed, flight_path_angle, heading, bank = aircraft_state.unbind(-1)
+    dest_x, dest_y, dest_z, dest_heading = destination_state.unbind(-1)
+    dx, dy = x - dest_x, y - dest_y
+    cos_dest, sin_dest = torch.cos(dest_heading), torch.sin(dest_heading)
+    moved = torch.stack(
+        (cos_dest * dx + sin_dest * dy, -sin_dest * dx + cos_dest * dy, z - dest_z, speed, flight_path_angle,
+         wrap_angle(heading - dest_heading), bank),
+        dim=-1,
+    )
+    return moved, torch.zeros_like(destination_state)
+
+
+def observation_function(kind: str):
+    """The function computing observation ``kind``'s policy input from equation 4's fields."""
+    observation_size(kind)  # one-line error on an unknown kind
+    return {"relative": policy_observation, "absolute": absolute_observation}[kind]

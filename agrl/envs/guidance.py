@@ -18,7 +18,7 @@ from torchrl.envs import EnvBase
 from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.destinations import redraw_irregular_motion
 from agrl.core.initial_states import sample_initial_aircraft
-from agrl.core.observation import OBSERVATION_SIZE, policy_observation
+from agrl.core.observation import observation_function, observation_size
 from agrl.core.parameters import GuidanceParameters, MotionKind
 from agrl.core.reward import potential, shaping_reward, switch_cost_reward, termination_reward
 from agrl.core.simulation import DecisionResult, DecisionSimulator
@@ -53,6 +53,10 @@ class GuidanceEnv(EnvBase):
     Scenario replay: ``env.reset(env.scenario(aircraft_state=..., destination_state=...,
     destination_speed=..., destination_turn_rate=...))`` starts the (masked) rows from
     those initial conditions instead of sampling them.
+
+    ``observation`` picks the policy input (``agent.observation``): ``relative`` (this project's default,
+    :func:`agrl.core.observation.policy_observation`) or ``absolute`` (equation 4 as it stands,
+    :func:`agrl.core.observation.absolute_observation`).
     """
 
     batch_locked = True
@@ -63,9 +67,13 @@ class GuidanceEnv(EnvBase):
         num_envs: int = 1,
         device: torch.device | str = "cpu",
         seed: int | None = None,
+        observation: str = "relative",
     ):
         super().__init__(device=device, batch_size=torch.Size([num_envs]))
         self.params = params
+        self.observation_kind = observation
+        self._observation_size = observation_size(observation)  # one-line error on an unknown kind
+        self._observation = observation_function(observation)
         if self.params.max_decisions < 1:
             raise ValueError(f"max_decisions must be >= 1, got {self.params.max_decisions}")
         self.simulator = DecisionSimulator(
@@ -81,7 +89,7 @@ class GuidanceEnv(EnvBase):
     def _make_specs(self) -> None:
         batch = self.batch_size
         self.observation_spec = Composite(
-            observation=Unbounded((*batch, OBSERVATION_SIZE), device=self.device),
+            observation=Unbounded((*batch, self._observation_size), device=self.device),
             aircraft_state=Unbounded((*batch, 7), device=self.device),
             destination_state=Unbounded((*batch, 4), device=self.device),
             destination_speed=Bounded(0.0, torch.inf, batch, device=self.device),
@@ -125,7 +133,7 @@ class GuidanceEnv(EnvBase):
     def observe(self, state: TensorDictBase) -> torch.Tensor:
         """The policy input from the raw fields (one function for env and reuse step)."""
         simulation = self.params.simulation
-        return policy_observation(
+        return self._observation(
             state["aircraft_state"], state["destination_state"], state["last_action"],
             simulation.airspace, simulation.limits,
         )

@@ -7,16 +7,18 @@ from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.modules import MLP, ProbabilisticActor, ValueOperator
 
-from agrl.core.observation import OBSERVATION_SIZE
+from agrl.core.observation import observation_size
 from agrl.envs.guidance import NUM_ACTIONS
 
 ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 
 
-def make_actor(hidden: list[int], activation: str, device: torch.device | str = "cpu") -> ProbabilisticActor:
-    """``observation -> logits -> action`` with ``action_log_prob``; deterministic mode is the argmax."""
+def make_actor(hidden: list[int], activation: str, device: torch.device | str = "cpu",
+               observation: str = "relative") -> ProbabilisticActor:
+    """``observation -> logits -> action`` with ``action_log_prob``; deterministic mode is the argmax.
+    ``observation`` (relative or absolute, ``agent.observation``) sets the input width."""
     network = MLP(
-        in_features=OBSERVATION_SIZE, out_features=NUM_ACTIONS, num_cells=list(hidden),
+        in_features=observation_size(observation), out_features=NUM_ACTIONS, num_cells=list(hidden),
         activation_class=ACTIVATIONS[activation], device=device,
     )
     # Small final layer: the initial policy is close to uniform over the 7 maneuvers.
@@ -32,9 +34,10 @@ def make_actor(hidden: list[int], activation: str, device: torch.device | str = 
     )
 
 
-def make_critic(hidden: list[int], activation: str, device: torch.device | str = "cpu") -> ValueOperator:
+def make_critic(hidden: list[int], activation: str, device: torch.device | str = "cpu",
+                observation: str = "relative") -> ValueOperator:
     network = MLP(
-        in_features=OBSERVATION_SIZE, out_features=1, num_cells=list(hidden),
+        in_features=observation_size(observation), out_features=1, num_cells=list(hidden),
         activation_class=ACTIVATIONS[activation], device=device,
     )
     return ValueOperator(network, in_keys=["observation"])

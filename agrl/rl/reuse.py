@@ -53,7 +53,7 @@ from torchrl.envs import ExplorationType, Transform, set_exploration_type
 from torchrl.modules import ProbabilisticActor
 
 from agrl.core.destinations import DestinationState, move_destination
-from agrl.core.observation import policy_observation
+from agrl.core.observation import in_destination_frame, observation_function
 from agrl.core.simulation import DecisionResult
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import STATE_KEYS, GuidanceEnv
@@ -139,11 +139,15 @@ class PolicyReuseTransform(Transform):
         seed: int = 0,
         relabel_unfinished: bool = True,
         relabel_own_successes: bool = True,
+        baseline_observation: str = "relative",
     ):
         super().__init__(in_keys=[], out_keys=[])
         if keep not in ("earliest", "latest"):
             raise ValueError(f"keep={keep!r} is not allowed: earliest or latest")
         self.baseline_actor = baseline_actor.eval().requires_grad_(False)
+        # B's own input (its checkpoint's agent.observation), which may differ from Z's (the env's).
+        self.baseline_observation = baseline_observation
+        self._baseline_input = observation_function(baseline_observation)
         self._baseline_logits = _logits_network(self.baseline_actor)
         self.env = env
         self.selection_factor = float(initial_selection_factor)
@@ -395,9 +399,17 @@ class PolicyReuseTransform(Transform):
     def _predicted_observation(
         self, aircraft_state: torch.Tensor, predicted_destination: torch.Tensor, last_action: torch.Tensor
     ) -> torch.Tensor:
+        """B's input with the destination fields replaced by the prediction (equation 20).
+
+        The relative observation describes the aircraft from the destination it is given, so the prediction goes
+        in as it is. With the absolute one (equation 4), B has only seen the fixed destination at the origin: the
+        state is moved into the predicted destination's frame first (section 5.1, :func:`in_destination_frame`).
+        """
         simulation = self.env.params.simulation
-        return policy_observation(aircraft_state, predicted_destination, last_action, simulation.airspace,
-                                  simulation.limits)
+        if self.baseline_observation == "absolute":
+            aircraft_state, predicted_destination = in_destination_frame(aircraft_state, predicted_destination)
+        return self._baseline_input(aircraft_state, predicted_destination, last_action, simulation.airspace,
+                                    simulation.limits)
 
     def _baseline_mode(self, observation: torch.Tensor) -> torch.Tensor:
         """B's action in deterministic mode: the mode of its distribution (the argmax for a categorical)."""

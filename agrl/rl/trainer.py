@@ -90,8 +90,8 @@ class Trainer:
 
         self.params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation)
         self.env, self.eval_env = self._make_envs()
-        self.actor = make_actor(cfg.agent.actor_hidden, cfg.agent.activation, self.device)
-        self.critic = make_critic(cfg.agent.critic_hidden, cfg.agent.activation, self.device)
+        self.actor = make_actor(cfg.agent.actor_hidden, cfg.agent.activation, self.device, cfg.agent.observation)
+        self.critic = make_critic(cfg.agent.critic_hidden, cfg.agent.activation, self.device, cfg.agent.observation)
         self.baseline_actor = self._load_baseline(cfg.method.baseline) if cfg.method.name != "scratch" else None
         self._make_ppo()
         self.reuse = self._make_reuse_transform() if cfg.method.name == "reuse" else None
@@ -114,9 +114,11 @@ class Trainer:
         return self.cfg.seed + 1_000_003  # a fixed evaluation set, disjoint from the training stream
 
     def _make_envs(self) -> tuple[GuidanceEnv, GuidanceEnv]:
-        train = GuidanceEnv(self.params, num_envs=self.cfg.ppo.num_envs, device=self.device, seed=self.cfg.seed)
+        observation = self.cfg.agent.observation
+        train = GuidanceEnv(self.params, num_envs=self.cfg.ppo.num_envs, device=self.device, seed=self.cfg.seed,
+                            observation=observation)
         periodic = GuidanceEnv(self.params, num_envs=self.cfg.eval.periodic_episodes, device=self.device,
-                               seed=self.eval_seed)
+                               seed=self.eval_seed, observation=observation)
         return train, periodic
 
     def _make_collector(self) -> Collector | MultiSyncCollector:
@@ -151,12 +153,20 @@ class Trainer:
         """The frozen baseline actor B; pretrained (and reuse from B) also start Z's networks from it."""
         path = resolve_checkpoint_path(reference)
         payload = load_checkpoint(path, required=("actor", "critic"))
+        baseline_agent = payload.get("config", {}).get("agent", {})
+        # Checkpoints written before agent.observation existed read the relative observation.
+        self.baseline_observation = baseline_agent.get("observation", "relative")
         if self.cfg.method.name == "pretrained" or self.cfg.method.start_from_baseline:
+            if self.baseline_observation != self.cfg.agent.observation:
+                raise CheckpointError(
+                    f"{path}: agent.observation={self.cfg.agent.observation} is not allowed when starting from this "
+                    f"baseline: it was trained with observation={self.baseline_observation}; train Z with the same"
+                )
             load_module_state(self.actor, payload["actor"], path, "actor")
             load_module_state(self.critic, payload["critic"], path, "critic")
-        baseline_agent = payload.get("config", {}).get("agent", {})
         actor = make_actor(baseline_agent.get("actor_hidden", self.cfg.agent.actor_hidden),
-                           baseline_agent.get("activation", self.cfg.agent.activation), self.device)
+                           baseline_agent.get("activation", self.cfg.agent.activation), self.device,
+                           self.baseline_observation)
         load_module_state(actor, payload["actor"], path, "baseline actor")
         self.baseline_path = path
         return actor.eval().requires_grad_(False)
@@ -181,6 +191,7 @@ class Trainer:
             candidate_stride=method.candidate_stride, max_candidates=method.max_candidates, keep=method.keep,
             ppo_targets=self._ppo_targets, max_rows=self._storage_size(), seed=self.cfg.seed,
             relabel_unfinished=method.relabel_unfinished, relabel_own_successes=method.relabel_own_successes,
+            baseline_observation=self.baseline_observation,
         )
 
     def _ppo_targets(self, trajectories: TensorDictBase, valid: torch.Tensor) -> TensorDictBase:
@@ -293,7 +304,8 @@ class Trainer:
     def evaluate(self, episodes: int | None = None, record_trajectories: bool = False) -> tuple[dict[str, Any], Any]:
         env = self.eval_env
         if episodes is not None and episodes != env.batch_size[0]:
-            env = GuidanceEnv(self.params, num_envs=episodes, device=self.device, seed=self.eval_seed)
+            env = GuidanceEnv(self.params, num_envs=episodes, device=self.device, seed=self.eval_seed,
+                              observation=self.cfg.agent.observation)
         env.set_seed(self.eval_seed)  # the same evaluation episodes every time
         records = run_episodes(env, self.actor, record_trajectories=record_trajectories)
         return summarise(records), records

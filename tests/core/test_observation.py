@@ -8,7 +8,15 @@ import pytest
 import torch
 
 from agrl.core.aircraft import MANEUVER_NAMES
-from agrl.core.observation import OBSERVATION_FEATURES, OBSERVATION_SIZE, policy_observation
+from agrl.core.observation import (
+    ABSOLUTE_OBSERVATION_FEATURES,
+    OBSERVATION_FEATURES,
+    OBSERVATION_SIZE,
+    absolute_observation,
+    in_destination_frame,
+    observation_size,
+    policy_observation,
+)
 
 INDEX = {name: i for i, name in enumerate(OBSERVATION_FEATURES)}
 ABSOLUTE_XY = [INDEX["x"], INDEX["y"]]
@@ -144,3 +152,53 @@ def test_geometry_features(observe):
     zero_action = torch.zeros(1, dtype=torch.int64)
     assert float(observe(at_origin, left, zero_action)[0, INDEX["bearing_sin"]]) == pytest.approx(1.0)
     assert float(observe(at_origin, right, zero_action)[0, INDEX["bearing_sin"]]) == pytest.approx(-1.0)
+
+
+# ---------------------------------------------------------------------------- equation 4 as it stands
+ABSOLUTE = {name: i for i, name in enumerate(ABSOLUTE_OBSERVATION_FEATURES)}
+
+
+def test_absolute_observation_is_equation_4_normalised(paper_parameters):
+    simulation = paper_parameters.simulation
+    aircraft = torch.tensor([[5_000.0, -2_500.0, 1_000.0, 175.0, math.radians(15), math.pi / 2, 0.45 * math.pi]],
+                            dtype=torch.float64)
+    destination = torch.tensor([[0.0, 10_000.0, 5_000.0, math.pi]], dtype=torch.float64)
+    obs = absolute_observation(aircraft, destination, torch.tensor([3]), simulation.airspace, simulation.limits)[0]
+    assert obs.shape == (observation_size("absolute"),) == (len(ABSOLUTE_OBSERVATION_FEATURES),) == (26,)
+    expected = {
+        "x": 0.5, "y": -0.25, "altitude": -0.6, "speed": 0.0, "flight_path_angle": 0.5,  # 15 of conf's 30 deg
+        "heading_sin": 1.0, "heading_cos": 0.0, "bank": 0.9,
+        "destination_x": 0.0, "destination_y": 1.0, "destination_altitude": 1.0,
+        "destination_heading_sin": 0.0, "destination_heading_cos": -1.0,
+        "x_near": math.tanh(2.5), "y_near": math.tanh(-1.25), "altitude_near": math.tanh(2.0),
+        "destination_x_near": 0.0, "destination_y_near": math.tanh(5.0), "destination_altitude_near": math.tanh(10.0),
+    }
+    for name, value in expected.items():
+        assert float(obs[ABSOLUTE[name]]) == pytest.approx(value, abs=1e-12), name
+    assert obs[-NUM_ACTIONS:].tolist() == [0, 0, 0, 1, 0, 0, 0]
+
+
+def test_the_destination_frame_keeps_every_relative_feature_and_puts_the_destination_at_the_origin(observe):
+    aircraft, destination, last_action = random_inputs(64, seed=4)
+    moved, origin = in_destination_frame(aircraft, destination)
+    assert torch.equal(origin, torch.zeros_like(destination))
+    keep = other_columns([*ABSOLUTE_XY, INDEX["altitude"]])  # the aircraft's place in the airspace moves with it
+    torch.testing.assert_close(observe(moved, origin, last_action)[:, keep],
+                               observe(aircraft, destination, last_action)[:, keep], rtol=0, atol=1e-9)
+    # Speed, flight-path angle and bank are the aircraft's own.
+    assert torch.equal(moved[:, [3, 4, 6]], aircraft[:, [3, 4, 6]])
+
+
+def test_the_destination_frame_is_the_papers_shift_for_a_destination_heading_0():
+    aircraft, destination, _ = random_inputs(16, seed=5)
+    destination[:, 3] = 0.0
+    moved, _ = in_destination_frame(aircraft, destination)
+    shifted = aircraft.clone()
+    shifted[:, :3] -= destination[:, :3]  # section 5.1: (x_a - x_d, y_a - y_d, z_a - z_d, psi_a - psi_d)
+    shifted[:, 5] = torch.atan2(torch.sin(aircraft[:, 5]), torch.cos(aircraft[:, 5]))
+    torch.testing.assert_close(moved, shifted, rtol=0, atol=1e-9)
+
+
+def test_an_unknown_observation_kind_is_one_line():
+    with pytest.raises(ValueError, match=r"^observation='polar' is not allowed: one of relative, absolute$"):
+        observation_size("polar")

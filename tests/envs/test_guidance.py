@@ -11,7 +11,7 @@ import torch
 from tensordict import TensorDict
 from torchrl.envs.utils import check_env_specs
 
-from agrl.core.observation import OBSERVATION_SIZE, policy_observation
+from agrl.core.observation import OBSERVATION_SIZE, absolute_observation, observation_size, policy_observation
 from agrl.core.parameters import DestinationMotion
 from agrl.core.termination import Outcome
 from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
@@ -81,16 +81,24 @@ def test_reward_parts_sum_to_the_reward(kind, reward_changes, paper_parameters, 
         assert bool((parts[key] != 0).any()) == used, key
 
 
+def test_rejects_an_unknown_observation_in_one_line(make_params):
+    with pytest.raises(ValueError, match=r"^observation='polar' is not allowed: one of relative, absolute$"):
+        GuidanceEnv(make_params(), num_envs=1, seed=0, observation="polar")
+
+
 def test_rejects_an_empty_decision_budget(make_params):
     with pytest.raises(ValueError, match="max_decisions"):
         GuidanceEnv(make_params(max_decisions=0), num_envs=1, seed=0)
 
 
-def test_observation_matches_the_state(make_params):
-    env = GuidanceEnv(make_params(MotionKind.CURVED), num_envs=3, seed=1)
+@pytest.mark.parametrize("kind,function", [("relative", policy_observation), ("absolute", absolute_observation)])
+def test_observation_matches_the_state(make_params, kind, function):
+    env = GuidanceEnv(make_params(MotionKind.CURVED), num_envs=3, seed=1, observation=kind)
+    check_env_specs(env)
+    assert env.observation_spec["observation"].shape == (3, observation_size(kind))
     td = env.rollout(3, policy=cycling_policy, break_when_any_done=False)
     for sub in (td, td["next"]):
-        expected = policy_observation(
+        expected = function(
             sub["aircraft_state"],
             sub["destination_state"],
             sub["last_action"],

@@ -31,7 +31,13 @@ from torchrl.modules import ProbabilisticActor
 from torchrl.objectives.value import GAE
 
 from agrl.core.destinations import DestinationState, move_destination
-from agrl.core.observation import OBSERVATION_SIZE, policy_observation
+from agrl.core.observation import (
+    ABSOLUTE_OBSERVATION_FEATURES,
+    OBSERVATION_SIZE,
+    absolute_observation,
+    in_destination_frame,
+    policy_observation,
+)
 from agrl.core.reward import potential, step_reward
 from agrl.core.termination import Outcome
 from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
@@ -83,6 +89,21 @@ class PursuitLogits(torch.nn.Module):
         bearing_sin, bearing_cos = observation[..., 1], observation[..., 2]
         turn = torch.where(bearing_sin > 0, LEFT, RIGHT)  # left turns increase the heading
         action = torch.where(bearing_cos < 0.99, turn, torch.where(distance > FAR, ACCELERATE, STEADY))
+        return 10.0 * torch.nn.functional.one_hot(action, 7).float()
+
+
+class AbsolutePursuitLogits(torch.nn.Module):
+    """PursuitLogits for a baseline that reads equation 4 as it stands (``agent.observation=absolute``) and was
+    trained on the fixed destination at the origin: it flies to the origin, whatever the destination fields say."""
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        index = {name: i for i, name in enumerate(ABSOLUTE_OBSERVATION_FEATURES)}
+        x, y = observation[..., index["x"]] * 10_000.0, observation[..., index["y"]] * 10_000.0  # [-10, 10] km
+        heading = torch.atan2(observation[..., index["heading_sin"]], observation[..., index["heading_cos"]])
+        bearing = torch.atan2(-y, -x) - heading
+        turn = torch.where(torch.sin(bearing) > 0, LEFT, RIGHT)
+        far = torch.sqrt(x * x + y * y) > FAR
+        action = torch.where(torch.cos(bearing) < 0.99, turn, torch.where(far, ACCELERATE, STEADY))
         return 10.0 * torch.nn.functional.one_hot(action, 7).float()
 
 
@@ -297,6 +318,32 @@ def test_actions_are_the_baselines_on_the_predicted_destination(relabelled):
         assert torch.equal(rows["action"], baseline_argmax(observed))
         differs += int((baseline_argmax(rows["observation"]) != rows["action"]).sum())
     assert differs > 0, "the scenario must tell the predicted destination from the real one"
+
+
+def test_an_absolute_baseline_is_queried_in_the_predicted_destinations_frame(uniform):
+    """Section 5.1: B, trained with equation 4 on the destination at the origin, sees the state moved into the
+    predicted destination's frame, so a B that only ever flies to the origin catches the moving destination."""
+    flat = uniform.flat()
+    transform = uniform.transform(as_actor(AbsolutePursuitLogits()), baseline_observation="absolute")
+    uniform.received.clear()
+    transform.relabel(flat)
+    stats = transform.last_statistics()
+    assert stats["train/reuse_episodes_relabelled"] > 0 and stats["train/reuse_fraction"] > 0
+    trajectories, valid = uniform.received[0], uniform.received_valid
+    starts = starts_of(flat)
+    prediction, motion = transform._destination_prediction(flat, starts, flat.get(TRAJECTORY_KEY))
+    _, winner = transform._search(flat[starts], prediction, motion)
+    target = prediction[winner >= 0, transform.candidates[winner[winner >= 0]]]
+    rows = trajectories[valid]
+    moved, origin = in_destination_frame(rows["aircraft_state"],
+                                         target[:, None].expand(*valid.shape, 4)[valid])
+    simulation = uniform.env.params.simulation
+    observed = absolute_observation(moved, origin, rows["last_action"], simulation.airspace, simulation.limits)
+    assert torch.equal(rows["action"], AbsolutePursuitLogits()(observed).argmax(-1))
+    # Queried on the real (absolute) state instead, it would head for the origin and miss the destination.
+    plain = absolute_observation(rows["aircraft_state"], target[:, None].expand(*valid.shape, 4)[valid],
+                                 rows["last_action"], simulation.airspace, simulation.limits)
+    assert bool((AbsolutePursuitLogits()(plain).argmax(-1) != rows["action"]).any())
 
 
 def test_baseline_acts_by_its_mode_on_the_predicted_destination(uniform):
@@ -876,22 +923,29 @@ SCENARIO_START = ["simulation.initial_state.x_range=[-5000,-5000]", "simulation.
                   "simulation.initial_state.z_range=[100,100]"]
 
 
-@pytest.fixture(scope="module")
-def steady_baseline(tmp_path_factory) -> Path:
+def steady_checkpoint(path: Path, observation: str | None = None) -> Path:
     """A fixed-task baseline checkpoint in the trainer's format whose actor always flies steady:
-    in the hand-built scenario that reaches the destination, so relabelling happens in the run."""
+    in the hand-built scenario that reaches the destination, so relabelling happens in the run.
+    ``observation`` None: a checkpoint written before ``agent.observation`` existed (relative)."""
     torch.manual_seed(0)
-    actor = make_actor([16, 16], "tanh")
+    actor = make_actor([16, 16], "tanh", observation=observation or "relative")
     output_layer = actor.module[0].module[-1]
     with torch.no_grad():
         output_layer.weight.zero_()
         output_layer.bias.zero_()
         output_layer.bias[STEADY] = 10.0
-    path = tmp_path_factory.mktemp("baseline") / "steady.pt"
     agent = {"name": "small", "actor_hidden": [16, 16], "critic_hidden": [16, 16], "activation": "tanh"}
-    save_checkpoint({"actor": actor.state_dict(), "critic": make_critic([16, 16], "tanh").state_dict(),
+    if observation is not None:
+        agent["observation"] = observation
+    critic = make_critic([16, 16], "tanh", observation=observation or "relative")
+    save_checkpoint({"actor": actor.state_dict(), "critic": critic.state_dict(),
                      "config": {"agent": agent, "task": {"name": "fixed"}}}, path)
     return path
+
+
+@pytest.fixture(scope="module")
+def steady_baseline(tmp_path_factory) -> Path:
+    return steady_checkpoint(tmp_path_factory.mktemp("baseline") / "steady.pt")
 
 
 def scalar_values(run_dir: Path) -> dict[str, list[float]]:
@@ -922,6 +976,35 @@ def test_reuse_training_runs_end_to_end(run_cli, tiny_args, tmp_path, steady_bas
     assert ("loss/clip_fraction_own" in values) == (min(values["train/reuse_fraction"]) < 1), sorted(values)
     summary = json.loads((run_dir / "eval" / "eval.json").read_text())
     assert summary["method"] == "reuse" and summary["task"] == "uniform"
+
+
+def test_reuse_with_the_papers_observation_runs_end_to_end(run_cli, tiny_args, tmp_path):
+    """Z and B both read equation 4 as it stands (agent.observation=absolute); B is queried in the predicted
+    destination's frame, and the trained agent evaluates on its own input."""
+    baseline = steady_checkpoint(tmp_path / "steady_absolute.pt", observation="absolute")
+    run_dir = tmp_path / "reuse_absolute"
+    args = tiny_args({"ppo.total_frames": 512, "eval.interval": 1, "eval.episodes": 8})
+    result = run_cli("train", "task=uniform", "speed=50", "method=reuse", f"method.baseline={baseline}",
+                     "agent.observation=absolute", "method.max_candidates=4", *args, *SCENARIO_START,
+                     f"hydra.run.dir={run_dir}")
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert 0 < scalar_values(run_dir)["train/reuse_fraction"][-1] <= 1
+    evaluation = run_cli("evaluate", f"checkpoint={run_dir}", "episodes=8", "trajectories=0",
+                         f"output_dir={tmp_path / 'eval'}", f"hydra.run.dir={tmp_path / 'eval'}")
+    assert evaluation.returncode == 0, evaluation.stderr[-3000:]
+    assert json.loads(evaluation.stdout.strip().splitlines()[-1])["episodes"] == 8
+
+
+def test_pretrained_from_a_baseline_of_another_observation_is_a_one_line_error(run_cli, tiny_args, tmp_path,
+                                                                               steady_baseline):
+    result = run_cli("train", "method=pretrained", f"method.baseline={steady_baseline}", "agent.observation=absolute",
+                     "agent.actor_hidden=[16,16]", "agent.critic_hidden=[16,16]", *tiny_args(),
+                     f"hydra.run.dir={tmp_path / 'pretrained'}")
+    assert result.returncode == 2, result.stderr[-3000:]
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
+    assert lines[0].startswith("agrl.train: error:") and str(steady_baseline) in lines[0]
+    assert "agent.observation=absolute" in lines[0] and "observation=relative" in lines[0]
 
 
 def test_pretrained_with_a_different_actor_is_a_one_line_error(run_cli, tiny_args, tiny_run, tmp_path):
