@@ -93,6 +93,12 @@ def observation_size(kind: str) -> int:
     return len(OBSERVATION_KINDS[kind])
 
 
+def _one_hot(last_action: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
+    """The last maneuver, one-hot by comparison: F.one_hot's values without its range check (a pass over the batch)."""
+    maneuvers = torch.arange(len(MANEUVER_NAMES), device=last_action.device)
+    return (last_action.long().unsqueeze(-1) == maneuvers).to(dtype)
+
+
 def _to_unit_interval(value: torch.Tensor, low: float, high: float) -> torch.Tensor:
     return 2.0 * (value - low) / (high - low) - 1.0
 
@@ -139,10 +145,7 @@ def policy_observation(
         ),
         dim=-1,
     )
-    # One-hot by comparison: the same values as F.one_hot without its range check (a pass over the batch).
-    maneuvers = torch.arange(len(MANEUVER_NAMES), device=last_action.device)
-    one_hot = (last_action.long().unsqueeze(-1) == maneuvers).to(features.dtype)
-    return torch.cat((features, one_hot), dim=-1)
+    return torch.cat((features, _one_hot(last_action, features.dtype)), dim=-1)
 
 
 def absolute_observation(
@@ -184,9 +187,7 @@ def absolute_observation(
         ),
         dim=-1,
     )
-    maneuvers = torch.arange(len(MANEUVER_NAMES), device=last_action.device)
-    one_hot = (last_action.long().unsqueeze(-1) == maneuvers).to(features.dtype)
-    return torch.cat((features, one_hot), dim=-1)
+    return torch.cat((features, _one_hot(last_action, features.dtype)), dim=-1)
 
 
 def in_destination_frame(

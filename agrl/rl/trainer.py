@@ -134,7 +134,8 @@ class Trainer:
                              device=self.device, auto_register_policy_transforms=False)
         envs_per_worker = self.cfg.ppo.num_envs // workers
         make_envs = [functools.partial(SharedScaleGuidanceEnv, self.params, num_envs=envs_per_worker,
-                                       device=self.device, seed=None)  # seeded below
+                                       device=self.device, seed=None,  # seeded below
+                                       observation=self.cfg.agent.observation)
                      for _ in range(workers)]
         # The scale goes as an env kwarg: TorchRL cloudpickles the env factory (a copy of any tensor in it) but
         # hands create_env_kwargs to the process itself, which torch.multiprocessing pickles as shared storage.

@@ -18,11 +18,14 @@ def batch_specs(batch) -> dict:
 
 
 @pytest.mark.slow  # two spawned worker processes import torch and torchrl: about 25 s on a loaded 2-core machine
+@pytest.mark.parametrize("observation", ["relative", "absolute"])
 def test_worker_batches_have_the_single_collectors_specs_and_the_current_weights(tmp_path, compose_train,
-                                                                                 tiny_args):
-    """Same keys, shapes and dtypes as one Collector's batch; the workers step with the actor's latest weights."""
-    single = Trainer(compose_train(*tiny_args({"curriculum.enabled": "false"})), tmp_path / "single")
-    multi = Trainer(compose_train(*tiny_args(WORKERS)), tmp_path / "multi")
+                                                                                 tiny_args, observation):
+    """Same keys, shapes and dtypes as one Collector's batch; the workers step with the actor's latest weights
+    (and compute the run's observation: its width is in the specs)."""
+    single = Trainer(compose_train(*tiny_args({"curriculum.enabled": "false", "agent.observation": observation})),
+                     tmp_path / "single")
+    multi = Trainer(compose_train(*tiny_args({**WORKERS, "agent.observation": observation})), tmp_path / "multi")
     try:
         expected = batch_specs(next(iter(single.collector)))
         batches = iter(multi.collector)
