@@ -21,6 +21,7 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
+from agrl.core.observation import LEGACY_OBSERVATION
 from agrl.core.parameters import GuidanceParameters, MotionKind
 
 
@@ -437,7 +438,7 @@ def validated_section(schema, values: dict) -> Any:
 def saved_agent_config(saved: dict) -> AgentConfig:
     """A checkpoint's saved ``agent`` section, validated. Checkpoints written before ``agent.observation``
     existed (the shipped baseline among them) have no entry: their agents read the relative observation."""
-    return validated_section(AgentConfig, {"observation": "relative", **saved["agent"]})
+    return validated_section(AgentConfig, {"observation": LEGACY_OBSERVATION, **saved["agent"]})
 
 
 def saved_guidance_parameters(saved: dict, task: TaskConfig | None = None,

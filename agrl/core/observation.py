@@ -82,17 +82,6 @@ ABSOLUTE_OBSERVATION_FEATURES = (
     "destination_altitude_near",
 ) + tuple(f"last_action_{name}" for name in MANEUVER_NAMES)
 
-#: ``agent.observation`` -> the feature names of its policy input.
-OBSERVATION_KINDS = {"relative": OBSERVATION_FEATURES, "absolute": ABSOLUTE_OBSERVATION_FEATURES}
-
-
-def observation_size(kind: str) -> int:
-    """Width of the policy input of observation ``kind`` (relative or absolute)."""
-    if kind not in OBSERVATION_KINDS:
-        raise ValueError(f"observation={kind!r} is not allowed: one of {', '.join(OBSERVATION_KINDS)}")
-    return len(OBSERVATION_KINDS[kind])
-
-
 def _one_hot(last_action: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
     """The last maneuver, one-hot by comparison: F.one_hot's values without its range check (a pass over the batch)."""
     maneuvers = torch.arange(len(MANEUVER_NAMES), device=last_action.device)
@@ -213,7 +202,26 @@ def in_destination_frame(
     return moved, torch.zeros_like(destination_state)
 
 
+#: ``agent.observation`` -> (the function computing its policy input from equation 4's fields, its feature names).
+OBSERVATIONS = {
+    "relative": (policy_observation, OBSERVATION_FEATURES),
+    "absolute": (absolute_observation, ABSOLUTE_OBSERVATION_FEATURES),
+}
+#: What a checkpoint written before ``agent.observation`` existed reads (the shipped baseline among them).
+LEGACY_OBSERVATION = "relative"
+
+
+def _observation(kind: str):
+    if kind not in OBSERVATIONS:
+        raise ValueError(f"observation={kind!r} is not allowed: one of {', '.join(OBSERVATIONS)}")
+    return OBSERVATIONS[kind]
+
+
 def observation_function(kind: str):
     """The function computing observation ``kind``'s policy input from equation 4's fields."""
-    observation_size(kind)  # one-line error on an unknown kind
-    return {"relative": policy_observation, "absolute": absolute_observation}[kind]
+    return _observation(kind)[0]
+
+
+def observation_size(kind: str) -> int:
+    """Width of the policy input of observation ``kind`` (relative or absolute)."""
+    return len(_observation(kind)[1])

@@ -20,11 +20,7 @@ from agrl.core.observation import observation_function
 from agrl.envs.guidance import NUM_ACTIONS, GuidanceEnv
 from agrl.rl.checkpoint import load_checkpoint, load_module_state, resolve_checkpoint_path, save_checkpoint
 from agrl.rl.evaluation import run_episodes, summarise
-from agrl.rl.models import make_actor, make_critic
-
-
-def _logits(actor) -> torch.nn.Module:
-    return actor.module[0].module  # make_actor's observation -> logits network
+from agrl.rl.models import logits_network, make_actor, make_critic
 
 
 def _collect(env: GuidanceEnv, act, epsilon: float, generator: torch.Generator) -> TensorDict:
@@ -73,38 +69,41 @@ def distill(
     def act(network, function):
         return lambda td: network(inputs(function, td)).argmax(-1)
 
+    teacher_logits, student_logits = logits_network(teacher_actor), logits_network(student_actor)
     env = GuidanceEnv(params, num_envs=envs, seed=seed)
     generator = torch.Generator().manual_seed(seed + 1)
     optimiser = torch.optim.Adam([*student_actor.parameters(), *student_critic.parameters()], lr=learning_rate)
-    states = []
+    # All rounds' labelled states; the teacher is frozen, so each state is labelled once, in the round it was flown.
+    student_obs, target_probability, target_value = [], [], []
     for round_index in range(rounds):
         started = time.perf_counter()
         with torch.no_grad():
-            flyer = (act(_logits(teacher_actor), teacher_input) if round_index == 0
-                     else act(_logits(student_actor), student_input))
-            states.append(_collect(env, flyer, epsilon, generator))
-            data = torch.cat(states)
-            teacher_obs = inputs(teacher_input, data)
-            target_probability = _logits(teacher_actor)(teacher_obs).softmax(-1)
-            target_value = teacher_critic.module(teacher_obs)
-            student_obs = inputs(student_input, data)
+            flyer = (act(teacher_logits, teacher_input) if round_index == 0 else act(student_logits, student_input))
+            states = _collect(env, flyer, epsilon, generator)
+            teacher_obs = inputs(teacher_input, states)
+            target_probability.append(teacher_logits(teacher_obs).softmax(-1))
+            target_value.append(teacher_critic.module(teacher_obs))
+            student_obs.append(inputs(student_input, states))
+        observations, probabilities, values = (torch.cat(part) for part in (student_obs, target_probability,
+                                                                             target_value))
         for _ in range(epochs):
-            for index in torch.randperm(len(data), generator=generator).split(minibatch):
-                log_probability = _logits(student_actor)(student_obs[index]).log_softmax(-1)
-                policy_loss = -(target_probability[index] * log_probability).sum(-1).mean()
-                value_loss = (student_critic.module(student_obs[index]) - target_value[index]).pow(2).mean()
+            for index in torch.randperm(len(observations), generator=generator).split(minibatch):
+                log_probability = student_logits(observations[index]).log_softmax(-1)
+                policy_loss = -(probabilities[index] * log_probability).sum(-1).mean()
+                value_loss = (student_critic.module(observations[index]) - values[index]).pow(2).mean()
                 optimiser.zero_grad()
+                # Values are returns of order 10-20 and their squared errors of order 1-100, the cross-entropy of
+                # order 1: the 0.01 keeps the critic's fit from driving the shared step size.
                 (policy_loss + 0.01 * value_loss).backward()
                 optimiser.step()
         with torch.no_grad():
-            agreement = float((_logits(student_actor)(student_obs).argmax(-1)
-                               == target_probability.argmax(-1)).float().mean())
-        log(f"round {round_index + 1}/{rounds}: {len(data)} states, agreement with the teacher {agreement:.4f}, "
-            f"{time.perf_counter() - started:.0f} s")
+            agreement = float((student_logits(observations).argmax(-1) == probabilities.argmax(-1)).float().mean())
+        log(f"round {round_index + 1}/{rounds}: {len(observations)} states, agreement with the teacher "
+            f"{agreement:.4f}, {time.perf_counter() - started:.0f} s")
 
     evaluation_env = GuidanceEnv(dataclasses.replace(params, compile=False), num_envs=evaluation_episodes,
                                  seed=seed + 1_000_003, observation=observation)
-    summary = {"distilled_from": str(path), "observation": observation, "rounds": rounds, "states": len(data),
+    summary = {"distilled_from": str(path), "observation": observation, "rounds": rounds, "states": len(observations),
                "agreement": agreement,
                "evaluation": summarise(run_episodes(evaluation_env, student_actor.eval()))}
     config = {**saved, "agent": {**saved["agent"], "observation": observation}}

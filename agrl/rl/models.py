@@ -46,3 +46,17 @@ def make_critic(hidden: list[int], activation: str, device: torch.device | str =
 def network_signature(module: nn.Module) -> dict[str, list[int]]:
     """Parameter names and shapes: what a checkpoint must match to be loaded into ``module``."""
     return {name: list(tensor.shape) for name, tensor in module.state_dict().items()}
+
+
+def logits_network(actor: torch.nn.Module) -> torch.nn.Module | None:
+    """The ``observation -> logits`` network of a categorical actor (as :func:`make_actor` builds
+    it: a logits module, then a ``Categorical`` on them), or None for any other actor (queried as a whole)."""
+    if not isinstance(actor, ProbabilisticActor) or len(actor.module) != 2:
+        return None
+    logits, distribution = actor.module
+    if (isinstance(logits, TensorDictModule) and list(logits.in_keys) == ["observation"]
+            and list(logits.out_keys) == ["logits"] and list(distribution.in_keys) == ["logits"]
+            and distribution.distribution_class is torch.distributions.Categorical
+            and not distribution.distribution_kwargs):
+        return logits.module
+    return None

@@ -48,7 +48,6 @@ from typing import NamedTuple
 
 import torch
 from tensordict import TensorDict, TensorDictBase
-from tensordict.nn import TensorDictModule
 from torchrl.envs import ExplorationType, Transform, set_exploration_type
 from torchrl.modules import ProbabilisticActor
 
@@ -57,6 +56,7 @@ from agrl.core.observation import in_destination_frame, observation_function
 from agrl.core.simulation import DecisionResult
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import STATE_KEYS, GuidanceEnv
+from agrl.rl.models import logits_network
 
 #: Entries kept in the buffer for PPO when the transform is active.
 PPO_KEYS = ("observation", "action", "action_log_prob", "state_value", "advantage", "value_target", "relabelled")
@@ -148,7 +148,7 @@ class PolicyReuseTransform(Transform):
         # B's own input (its checkpoint's agent.observation), which may differ from Z's (the env's).
         self.baseline_observation = baseline_observation
         self._baseline_input = observation_function(baseline_observation)
-        self._baseline_logits = _logits_network(self.baseline_actor)
+        self._baseline_logits = logits_network(self.baseline_actor)
         self.env = env
         self.selection_factor = float(initial_selection_factor)
         self.selection_decay = float(selection_decay)
@@ -666,17 +666,3 @@ class SearchRecord(NamedTuple):
     action: torch.Tensor
     aircraft_state: torch.Tensor
     destination_state: torch.Tensor
-
-
-def _logits_network(actor: torch.nn.Module) -> torch.nn.Module | None:
-    """The ``observation -> logits`` network of a categorical actor (as :func:`agrl.rl.models.make_actor` builds
-    it: a logits module, then a ``Categorical`` on them), or None for any other actor (queried as a whole)."""
-    if not isinstance(actor, ProbabilisticActor) or len(actor.module) != 2:
-        return None
-    logits, distribution = actor.module
-    if (isinstance(logits, TensorDictModule) and list(logits.in_keys) == ["observation"]
-            and list(logits.out_keys) == ["logits"] and list(distribution.in_keys) == ["logits"]
-            and distribution.distribution_class is torch.distributions.Categorical
-            and not distribution.distribution_kwargs):
-        return logits.module
-    return None

@@ -28,6 +28,7 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
 
 from agrl.config import TrainConfig, task_label, to_guidance_parameters
+from agrl.core.observation import LEGACY_OBSERVATION
 from agrl.envs.guidance import GuidanceEnv
 from agrl.plots import plot_trajectories, trajectory_image
 from agrl.rl.checkpoint import (
@@ -155,8 +156,7 @@ class Trainer:
         path = resolve_checkpoint_path(reference)
         payload = load_checkpoint(path, required=("actor", "critic"))
         baseline_agent = payload.get("config", {}).get("agent", {})
-        # Checkpoints written before agent.observation existed read the relative observation.
-        self.baseline_observation = baseline_agent.get("observation", "relative")
+        self.baseline_observation = baseline_agent.get("observation", LEGACY_OBSERVATION)
         if self.cfg.method.name == "pretrained" or self.cfg.method.start_from_baseline:
             if self.baseline_observation != self.cfg.agent.observation:
                 raise CheckpointError(
