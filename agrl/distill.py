@@ -1,4 +1,5 @@
-"""``python -m agrl.distill TEACHER DESTINATION [--observation absolute]``: one agent's policy on another input.
+"""``python -m agrl.distill TEACHER [TEACHER ...] DESTINATION [--observation absolute|relative]``: one network
+from a teacher's policy, on another input or from an ensemble.
 
 Writes a checkpoint whose actor and critic read observation ``--observation`` (``agent.observation``) and
 reproduce TEACHER's (a checkpoint, run directory or ``baseline``) on the teacher's own task: supervised
@@ -11,6 +12,11 @@ destination far more slowly than with the relative observation (docs/policy_reus
 observation"), and both observations describe the same state when the destination is at the origin, so the
 shipped baseline's policy can be re-expressed on equation 4's inputs. The student has only ever seen the
 fixed destination, as the paper's baseline: what policy reuse needs to be tested as the paper ran it.
+
+Several teachers make one ensemble teacher: the mean of their action probabilities (and of their values). With
+``--observation relative`` this compresses agents fine-tuned from one start (``+experiment=switch_finetune``
+seeds) into one network of the usual size, which ``method=pretrained`` and ``method=reuse`` can start from
+(docs/results/switch_cost.md, "An ensemble, distilled").
 """
 
 from __future__ import annotations
@@ -25,23 +31,29 @@ from agrl.rl.distill import distill
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m agrl.distill", description=__doc__.splitlines()[0])
-    parser.add_argument("teacher", help="checkpoint, run directory or 'baseline'")
+    parser.add_argument("teachers", nargs="+", metavar="TEACHER",
+                        help="checkpoint, run directory or 'baseline'; several: their ensemble is the teacher")
     parser.add_argument("destination", help="the student checkpoint to write")
     parser.add_argument("--observation", default="absolute", choices=("relative", "absolute"))
     parser.add_argument("--rounds", type=int, default=4, help="DAgger rounds (round 0 flies the teacher)")
     parser.add_argument("--envs", type=int, default=2048, help="episodes flown in parallel per round")
     parser.add_argument("--epochs", type=int, default=8, help="passes over all rounds' states per round")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--init", metavar="CHECKPOINT",
+                        help="start the student from this agent (same network and observation) instead of afresh")
     args = parser.parse_args(argv)
     try:
-        summary = distill(args.teacher, args.destination, observation=args.observation, rounds=args.rounds,
-                          envs=args.envs, epochs=args.epochs, seed=args.seed)
+        summary = distill(args.teachers, args.destination, observation=args.observation, rounds=args.rounds,
+                          envs=args.envs, epochs=args.epochs, seed=args.seed,
+                          init=args.init)
     except (ConfigError, CheckpointError) as error:
         print(f"agrl.distill: error: {error}", file=sys.stderr)
         return 2
-    evaluation = summary["evaluation"]
-    print(f"wrote {args.destination}: agreement {summary['agreement']:.4f}, success {evaluation['success_rate']:.4f} "
-          f"on {evaluation['episodes']} episodes of the teacher's task")
+    evaluation, teacher = summary["evaluation"], summary["teacher_evaluation"]
+    print(f"wrote {args.destination}: agreement {summary['agreement']:.4f}; on the same {evaluation['episodes']} "
+          f"episodes of the teacher's task, success {evaluation['success_rate']:.4f} at "
+          f"{evaluation['instructions_per_episode']:.2f} instructions (the teacher: {teacher['success_rate']:.4f} at "
+          f"{teacher['instructions_per_episode']:.2f})")
     return 0
 
 

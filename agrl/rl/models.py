@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
+
 import torch
 from tensordict.nn import TensorDictModule
 from torch import nn
@@ -60,3 +63,35 @@ def logits_network(actor: torch.nn.Module) -> torch.nn.Module | None:
             and not distribution.distribution_kwargs):
         return logits.module
     return None
+
+
+class MeanProbabilityLogits(nn.Module):
+    """Several ``observation -> logits`` networks as one: the log of the mean of their action probabilities.
+
+    A ``Categorical`` on these logits is the ensemble's mixture policy; its mode is the action the members
+    give the most probability on average.
+    """
+
+    def __init__(self, networks: Sequence[nn.Module]):
+        super().__init__()
+        if not networks:
+            raise ValueError("an ensemble needs at least one network")
+        self.networks = nn.ModuleList(networks)
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        log_probabilities = torch.stack([network(observation).log_softmax(-1) for network in self.networks])
+        return torch.logsumexp(log_probabilities, 0) - math.log(len(self.networks))
+
+
+def make_ensemble_actor(actors: Sequence[ProbabilisticActor]) -> ProbabilisticActor:
+    """One actor flying the mixture of ``actors``' policies (each built like :func:`make_actor`, same input)."""
+    networks = [logits_network(actor) for actor in actors]
+    if any(network is None for network in networks):
+        raise ValueError("every member of an ensemble must be an actor built by make_actor")
+    return ProbabilisticActor(
+        TensorDictModule(MeanProbabilityLogits(networks), in_keys=["observation"], out_keys=["logits"]),
+        in_keys=["logits"],
+        out_keys=["action"],
+        distribution_class=torch.distributions.Categorical,
+        return_log_prob=True,
+    )

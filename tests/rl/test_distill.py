@@ -76,3 +76,78 @@ def test_a_guide_refuses_the_absolute_student_in_one_line(student):
     with pytest.raises(GuideError, match=r"agent.observation=absolute is not allowed for a guide") as error:
         Guide.load(path)
     assert "\n" not in str(error.value)
+
+
+@pytest.fixture(scope="module")
+def ensemble_student(tmp_path_factory):
+    """Two teachers that disagree on many states: the shipped baseline and a copy with perturbed weights."""
+    from agrl.rl.checkpoint import resolve_checkpoint_path, save_checkpoint
+
+    folder = tmp_path_factory.mktemp("ensemble")
+    baseline = load_checkpoint(resolve_checkpoint_path("baseline"), required=("actor", "critic", "config"))
+    generator = torch.Generator().manual_seed(3)
+    perturbed = {name: tensor + 0.3 * tensor.std() * torch.randn(tensor.shape, generator=generator)
+                 for name, tensor in baseline["actor"].items()}
+    other = save_checkpoint({**baseline, "actor": perturbed}, folder / "perturbed.pt")
+    path = folder / "student.pt"
+    summary = distill(["baseline", other], path, observation="relative", rounds=2, envs=48, epochs=40,
+                      minibatch=512, evaluation_episodes=64, compile=False, log=lambda line: None)
+    return path, other, summary
+
+
+def test_an_ensemble_of_teachers_is_distilled_into_one_network_of_the_usual_size(ensemble_student):
+    from agrl.config import saved_guidance_parameters
+    from agrl.rl.models import logits_network, make_ensemble_actor
+
+    path, other, summary = ensemble_student
+    payload = load_checkpoint(path, required=("actor", "critic", "config", "distillation"))
+    baseline = load_checkpoint(payload["exported_from"], required=("actor",))
+    assert {name: list(t.shape) for name, t in payload["actor"].items()} == {
+        name: list(t.shape) for name, t in baseline["actor"].items()}
+    assert len(summary["distilled_from"]) == 2 and summary["distilled_from"][1] == str(other)
+    assert summary["teacher_evaluation"]["episodes"] == summary["evaluation"]["episodes"] == 64
+
+    members = [load_agent(reference)[0] for reference in ("baseline", str(other))]
+    ensemble = make_ensemble_actor(members)
+    student_actor, saved, _ = load_agent(str(path))
+    params = saved_guidance_parameters(saved, compile=False)
+    states = GuidanceEnv(params, num_envs=64, seed=321).rollout(40, policy=ensemble, break_when_any_done=False)
+    observations = states.reshape(-1)["observation"]
+    teacher = logits_network(ensemble)(observations).argmax(-1)
+    members_actions = [logits_network(member)(observations).argmax(-1) for member in members]
+    learnt = logits_network(student_actor)(observations).argmax(-1)
+    agreement = float((learnt == teacher).float().mean())
+    assert bool((members_actions[0] != members_actions[1]).any())  # the ensemble is neither member alone
+    assert agreement > 0.7, agreement
+
+
+def test_teachers_of_different_observations_are_refused_in_one_line(student, tmp_path):
+    from agrl.config import ConfigError
+
+    absolute_student, _ = student
+    with pytest.raises(ConfigError, match="observation=absolute is not allowed in this ensemble") as error:
+        distill(["baseline", absolute_student], tmp_path / "out.pt", observation="relative", compile=False,
+                log=lambda line: None)
+    assert "\n" not in str(error.value) and not (tmp_path / "out.pt").exists()
+
+
+def test_a_student_started_from_its_teacher_starts_where_it_stands(tmp_path):
+    """``init`` is where the student starts: from the teacher itself one short epoch leaves it nearly the teacher
+    (Adam's first steps move it by about the learning rate whatever the gradient), where a fresh student after
+    the same epoch agrees far less."""
+    settings = dict(observation="relative", rounds=1, envs=32, epochs=1, minibatch=512, evaluation_episodes=32,
+                    compile=False, log=lambda line: None)
+    started = distill("baseline", tmp_path / "started.pt", init="baseline", **settings)
+    fresh = distill("baseline", tmp_path / "fresh.pt", **settings)
+    assert started["initialised_from"] == "baseline" and fresh["initialised_from"] is None
+    assert started["agreement"] > 0.95 and started["agreement"] > fresh["agreement"] + 0.2, (started, fresh)
+
+
+def test_a_start_of_another_observation_is_refused_in_one_line(student, tmp_path):
+    from agrl.config import ConfigError
+
+    absolute_student, _ = student
+    with pytest.raises(ConfigError, match="is not allowed as the start of a student reading relative") as error:
+        distill("baseline", tmp_path / "out.pt", observation="relative", compile=False, init=absolute_student,
+                log=lambda line: None)
+    assert "\n" not in str(error.value)
