@@ -1,7 +1,7 @@
 """``python -m agrl.report``: turn finished runs into the paper's tables and figures.
 
-    python -m agrl.report table3 runs/table3 --output docs/results/table3.md
-    python -m agrl.report moving runs/moving --output docs/results/moving.md
+    python -m agrl.report table3 runs/table3 > table3.md              # the tables go to standard output
+    python -m agrl.report moving runs/moving --figures docs/results/figures
 
 Each run directory is found by its ``eval/eval.json``; its ``.hydra/config.yaml`` says which task, method,
 reward and seed it was, and its TensorBoard scalars (``tensorboard/events.out.tfevents.*``, the one metrics sink
@@ -239,14 +239,15 @@ def median_scalar(run_dir: Path, tag: str) -> float | None:
 def targets_table(groups: dict) -> str:
     """The issue's targets per setting: >= 99 % final success, and reuse's time to 95 % against the others.
 
-    Each time is given twice: to 95 % periodic-evaluation success (full start box, every 10 iterations) and to
+    Each time is given twice: to 95 % periodic-evaluation success (full start box, on the runs' ``eval`` schedule) and to
     95 % training success (every iteration; for scratch, on the curriculum's easier starts). Settings where
     ``reuse`` also ran with ``method.start_from_baseline=true`` get that variant's times too."""
     methods = ("scratch", "pretrained", "reuse")
     lines = ["### Against the targets\n",
              "Minutes of training wall time to 95 % success, as *evaluation / training* success: the median over "
-             "seeds (∞: not reached by at least half of the seeds). Evaluation success is measured every 10 "
-             "iterations on the full start box; training success every iteration on the training episodes "
+             "seeds (∞: not reached by at least half of the seeds). Evaluation success is measured on the full start "
+             "box at each periodic evaluation (`eval.interval` iterations or `eval.interval_seconds` seconds apart, "
+             "as the runs were configured); training success every iteration on the training episodes "
              "(for scratch, on the curriculum's easier starts). Then the lowest final success (1000 episodes) of "
              "any seed and the median relabelling time per reuse iteration. Reuse + B = reuse with "
              "`method.start_from_baseline=true` (not the paper's Algorithm 1); '-': not run.\n",
