@@ -239,9 +239,9 @@ def median_scalar(run_dir: Path, tag: str) -> float | None:
 def targets_table(groups: dict) -> str:
     """The issue's targets per setting: >= 99 % final success, and reuse's time to 95 % against the others.
 
-    Each time is given twice: to 95 % periodic-evaluation success (full start box, on the runs' ``eval`` schedule) and to
-    95 % training success (every iteration; for scratch, on the curriculum's easier starts). Settings where
-    ``reuse`` also ran with ``method.start_from_baseline=true`` get that variant's times too."""
+    Each time is given twice: to 95 % periodic-evaluation success (full start box, on the runs' ``eval``
+    schedule) and to 95 % training success (every iteration; for scratch, on the curriculum's easier starts).
+    Settings where ``reuse`` also ran with ``method.start_from_baseline=true`` get that variant's times too."""
     methods = ("scratch", "pretrained", "reuse")
     lines = ["### Against the targets\n",
              "Minutes of training wall time to 95 % success, as *evaluation / training* success: the median over "
