@@ -2,6 +2,7 @@
 
     python -m agrl.report table3 runs/table3 > table3.md              # the tables go to standard output
     python -m agrl.report moving runs/moving --figures docs/results/figures
+    python -m agrl.report runs runs/moving --times 60 120 180 240       # one line per run: its curve and costs
 
 Each run directory is found by its ``eval/eval.json``; its ``.hydra/config.yaml`` says which task, method,
 reward and seed it was, and its TensorBoard scalars (``tensorboard/events.out.tfevents.*``, the one metrics sink
@@ -284,18 +285,61 @@ def targets_table(groups: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def runs_table(runs: list[dict[str, Any]], root: Path, times: list[float]) -> str:
+    """One line per run: its first periodic evaluation, its best evaluation by each of ``times`` (training
+    seconds), the training seconds of the first evaluation at or above 95 %, the final evaluation, and the
+    iterations' cost (median over all iterations but the first, then the first; relabelling in brackets)."""
+
+    def cell(value: float | None, fmt: str = "{:.1f}") -> str:
+        return "-" if value is None else fmt.format(value)
+
+    lines = ["| run | evaluation before training | best evaluation by " + " / ".join(f"{t:g}" for t in times)
+             + " s | s to 95 % | final success (1000) | instructions | iterations "
+             "| median s / iteration (relabelling) | first iteration s (relabelling) |",
+             "|---|---:|---|---:|---:|---:|---:|---:|---:|"]
+    for run in sorted(runs, key=lambda run: str(run["dir"])):
+        rows = run["metrics"]
+        evaluations = [(row["time/wall_time"], row[SUCCESS_KEY]) for row in rows
+                       if SUCCESS_KEY in row and "time/wall_time" in row]
+        iterations = [row for row in rows if "time/iteration_seconds" in row]
+        reached = next((seconds for seconds, success in evaluations if success >= 0.95), None)
+        best = [max((success for seconds, success in evaluations if seconds <= limit), default=None)
+                for limit in times]
+        later = [row["time/iteration_seconds"] for row in iterations[1:]]
+        relabel = [row.get("time/reuse_seconds", 0.0) for row in iterations[1:]]
+        first = iterations[0] if iterations else {}
+        start = evaluations[0][1] * 100 if evaluations else None
+        best_text = " / ".join(cell(None if value is None else value * 100, "{:.0f}") for value in best)
+        final = run["eval"]
+        lines.append(
+            f"| {Path(run['dir']).relative_to(root)} | {cell(start, '{:.1f} %')} | {best_text} % "
+            f"| {cell(reached, '{:.0f}')} | {final['success_rate'] * 100:.1f} % "
+            f"| {final['instructions_per_episode']:.1f} "
+            f"| {len(iterations)} | {cell(statistics.median(later) if later else None, '{:.2f}')} "
+            f"({cell(statistics.median(relabel) if relabel else None, '{:.2f}')}) "
+            f"| {cell(first.get('time/iteration_seconds'))} ({cell(first.get('time/reuse_seconds'))}) |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m agrl.report", description=__doc__.splitlines()[0])
-    parser.add_argument("kind", choices=("table3", "moving"))
+    parser.add_argument("kind", choices=("table3", "moving", "runs"))
     parser.add_argument("root", type=Path, help="a folder containing finished runs (e.g. a multirun sweep dir)")
     parser.add_argument("--figures", type=Path, help="folder for success-against-time figures (moving)")
     parser.add_argument("--figure-suffix", default="", help="appended to figure names, e.g. _8min (moving)")
+    parser.add_argument("--times", type=float, nargs="+", default=[60, 120, 180],
+                        help="training seconds at which to give each run's best evaluation so far (runs)")
     args = parser.parse_args(argv)
     runs = find_runs(args.root)
     if not runs:
         print(f"agrl.report: error: no finished runs (eval/eval.json) below {args.root}", file=sys.stderr)
         return 2
-    print(table3(runs) if args.kind == "table3" else moving_tables(runs, args.figures, args.figure_suffix))
+    if args.kind == "table3":
+        print(table3(runs))
+    elif args.kind == "moving":
+        print(moving_tables(runs, args.figures, args.figure_suffix))
+    else:
+        print(runs_table(runs, args.root, args.times))
     return 0
 
 

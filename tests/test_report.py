@@ -142,3 +142,27 @@ def test_metrics_rows_come_back_from_tensorboard_one_per_step(tmp_path):
          "train/success_rate": 0.625, "eval/success_rate": 0.875},
     ]
     assert read_metrics(tmp_path / "no_run") == []
+
+
+def test_the_runs_table_gives_each_runs_curve_and_costs(tmp_path, capsys):
+    run = tmp_path / "reuse_s0"
+    (run / ".hydra").mkdir(parents=True)
+    (run / "eval").mkdir()
+    OmegaConf.save(OmegaConf.create({"task": {"name": "uniform", "speed": 50.0}, "method": {"name": "reuse"}}),
+                   run / ".hydra" / "config.yaml")
+    (run / "eval" / "eval.json").write_text(json.dumps({"success_rate": 0.987, "instructions_per_episode": 11.84}))
+    # The initial evaluation (no iteration yet), then three iterations of 8, 3 and 2 s (relabelling 2.5, 0.5, 0.25);
+    # evaluations at 20 s (60 %) and 70 s (97 %).
+    write_scalars(run, [
+        {"frames": 0, "train/iteration": 0, "time/wall_time": 0.0, "eval/success_rate": 0.004},
+        {"frames": 100, "train/iteration": 1, "time/wall_time": 20.0, "time/iteration_seconds": 8.0,
+         "time/reuse_seconds": 2.5, "eval/success_rate": 0.6},
+        {"frames": 200, "train/iteration": 2, "time/wall_time": 50.0, "time/iteration_seconds": 3.0,
+         "time/reuse_seconds": 0.5},
+        {"frames": 300, "train/iteration": 3, "time/wall_time": 70.0, "time/iteration_seconds": 2.0,
+         "time/reuse_seconds": 0.25, "eval/success_rate": 0.97}])
+    assert main(["runs", str(tmp_path), "--times", "60", "120"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].startswith("| run | evaluation before training | best evaluation by 60 / 120 s | s to 95 % |")
+    # Best by 60 s: 60 % (the 97 % came at 70 s); medians over iterations 2-3: 2.5 s and 0.375 s of relabelling.
+    assert lines[2] == "| reuse_s0 | 0.4 % | 60 / 97 % | 70 | 98.7 % | 11.8 | 3 | 2.50 (0.38) | 8.0 (2.5) |"
