@@ -16,7 +16,7 @@ fixed destination, as the paper's baseline: what policy reuse needs to be tested
 Several teachers make one ensemble teacher: the mean of their action probabilities (and of their values). With
 ``--observation relative`` this compresses agents fine-tuned from one start (``+experiment=switch_finetune``
 seeds) into one network of the usual size, which ``method=pretrained`` and ``method=reuse`` can start from
-(docs/results/switch_cost.md, "An ensemble, distilled").
+(docs/results/switch_cost.md, "An ensemble of the five fine-tunes").
 """
 
 from __future__ import annotations
@@ -44,8 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         summary = distill(args.teachers, args.destination, observation=args.observation, rounds=args.rounds,
-                          envs=args.envs, epochs=args.epochs, seed=args.seed,
-                          init=args.init)
+                          envs=args.envs, epochs=args.epochs, seed=args.seed, init=args.init)
     except (ConfigError, CheckpointError) as error:
         print(f"agrl.distill: error: {error}", file=sys.stderr)
         return 2

@@ -42,9 +42,9 @@ def _collect(env: GuidanceEnv, act, epsilon: float, generator: torch.Generator) 
 
 
 def _load_teachers(teachers: Sequence[str | Path]):
-    """(paths, saved config of the first, observation, actor, critic): one teacher, or the ensemble of several
-    (the mean of their action probabilities and of their values). An ensemble's members must share a task,
-    a simulation and an observation."""
+    """(paths, the first's saved config, observation, actor, value function): one teacher, or the ensemble of
+    several (the mean of their action probabilities and of their values). An ensemble's members must share a
+    task, a simulation and an observation; their rewards may differ (e.g. switch costs), the first's is kept."""
     if not teachers:
         raise ConfigError("no teacher given: name one checkpoint, or several for an ensemble")
     paths = [resolve_checkpoint_path(teacher) for teacher in teachers]
@@ -54,10 +54,10 @@ def _load_teachers(teachers: Sequence[str | Path]):
     actors, critics = [], []
     for path, payload in zip(paths, payloads, strict=True):
         agent = saved_agent_config(payload["config"])
-        for section in ("task", "simulation", "reward"):
+        for section in ("task", "simulation"):
             if payload["config"].get(section) != saved.get(section):
                 raise ConfigError(f"{path}: its {section} differs from {paths[0]}'s; an ensemble's teachers must "
-                                  "share task, simulation and reward")
+                                  "share task and simulation")
         if agent.observation != observation:
             raise ConfigError(f"{path}: observation={agent.observation} is not allowed in this ensemble: "
                               f"{paths[0]} reads {observation}")
@@ -148,14 +148,13 @@ def distill(
             f"{agreement:.4f}, {time.perf_counter() - started:.0f} s")
 
     def evaluation(actor, observation_kind: str) -> dict:
-        env_ = GuidanceEnv(dataclasses.replace(params, compile=False), num_envs=evaluation_episodes,
-                           seed=seed + 1_000_003, observation=observation_kind)
+        episodes = GuidanceEnv(dataclasses.replace(params, compile=False), num_envs=evaluation_episodes,
+                               seed=seed + 1_000_003, observation=observation_kind)
         with torch.no_grad():
-            return summarise(run_episodes(env_, actor))
+            return summarise(run_episodes(episodes, actor))
 
     summary = {"distilled_from": [str(path) for path in paths], "initialised_from": None if init is None else str(init),
-               "observation": observation, "rounds": rounds,
-               "states": len(observations), "agreement": agreement,
+               "observation": observation, "rounds": rounds, "states": len(observations), "agreement": agreement,
                "evaluation": evaluation(student_actor.eval(), observation),
                "teacher_evaluation": evaluation(teacher_actor, teacher_observation)}
     config = {**saved, "agent": {**saved["agent"], "observation": observation}}

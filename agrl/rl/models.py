@@ -28,8 +28,14 @@ def make_actor(hidden: list[int], activation: str, device: torch.device | str = 
     with torch.no_grad():
         network[-1].weight.mul_(0.01)
         network[-1].bias.zero_()
+    return _categorical_actor(network)
+
+
+def _categorical_actor(logits: nn.Module) -> ProbabilisticActor:
+    """``observation -> logits`` (``logits`` a network), then a ``Categorical``: the form :func:`logits_network`
+    recognises."""
     return ProbabilisticActor(
-        TensorDictModule(network, in_keys=["observation"], out_keys=["logits"]),
+        TensorDictModule(logits, in_keys=["observation"], out_keys=["logits"]),
         in_keys=["logits"],
         out_keys=["action"],
         distribution_class=torch.distributions.Categorical,
@@ -88,10 +94,4 @@ def make_ensemble_actor(actors: Sequence[ProbabilisticActor]) -> ProbabilisticAc
     networks = [logits_network(actor) for actor in actors]
     if any(network is None for network in networks):
         raise ValueError("every member of an ensemble must be an actor built by make_actor")
-    return ProbabilisticActor(
-        TensorDictModule(MeanProbabilityLogits(networks), in_keys=["observation"], out_keys=["logits"]),
-        in_keys=["logits"],
-        out_keys=["action"],
-        distribution_class=torch.distributions.Categorical,
-        return_log_prob=True,
-    )
+    return _categorical_actor(MeanProbabilityLogits(networks))
