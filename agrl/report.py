@@ -185,7 +185,8 @@ def moving_tables(runs: list[dict[str, Any]], figure_dir: Path | None, figure_su
             continue
         label = {"uniform": "Destination speed", "curved": "Turning radius", "irregular": "Irregular"}[kind]
         out.append(f"### {kind.capitalize()} destination\n")
-        out.append("| Method | " + " | ".join(f"{label} {v:g} {unit}".strip() for v in settings) + " |")
+        # The irregular destination has no speed or radius: its one column is named by the kind alone.
+        out.append("| Method | " + " | ".join(f"{label} {v:g} {unit}" if unit else label for v in settings) + " |")
         out.append("|---|" + "---|" * len(settings))
         for method in METHODS:
             if not any(groups[(kind, value)].get(method) for value in settings):
@@ -277,7 +278,8 @@ def targets_table(groups: dict) -> str:
         costs = [median_scalar(run["dir"], "time/reuse_seconds") for run in by_method["reuse"]]
         costs = [c for c in costs if c is not None]
         cost = f"{statistics.median(costs):.1f}" if costs else "-"
-        setting = f"{kind} {value:g} {'m/s' if kind == 'uniform' else 'm' if kind == 'curved' else ''}".strip()
+        unit = {"uniform": "m/s", "curved": "m"}.get(kind)
+        setting = f"{kind} {value:g} {unit}" if unit else kind  # the irregular destination has no speed or radius
         lines.append(
             f"| {setting} | {text['scratch']} | {text['pretrained']} | {text['reuse']} | "
             f"{text['reuse_from_baseline']} | {compare['scratch']} | {compare['pretrained']} | {lowest} | {cost} |"

@@ -166,3 +166,13 @@ def test_the_runs_table_gives_each_runs_curve_and_costs(tmp_path, capsys):
     assert lines[0].startswith("| run | evaluation before training | best evaluation by 60 / 120 s | s to 95 % |")
     # Best by 60 s: 60 % (the 97 % came at 70 s); medians over iterations 2-3: 2.5 s and 0.375 s of relabelling.
     assert lines[2] == "| reuse_s0 | 0.4 % | 60 / 97 % | 70 | 98.7 % | 11.8 | 3 | 2.50 (0.38) | 8.0 (2.5) |"
+
+
+def test_the_irregular_destination_is_named_without_a_speed(tmp_path):
+    run = make_run(tmp_path, "i", "reuse", 0, 0.99, [(0, 0.1), (60, 0.96)])
+    OmegaConf.save(OmegaConf.create({"task": {"name": "irregular", "speed": None}, "reward": {"name": "both"},
+                                     "method": {"name": "reuse", "start_from_baseline": False}, "seed": 0}),
+                   run / ".hydra" / "config.yaml")
+    text = moving_tables(find_runs(tmp_path), figure_dir=None)
+    assert any(line.startswith("| irregular | ") for line in text.splitlines()), text
+    assert "| Method | Irregular |" in text
