@@ -304,7 +304,8 @@ def runs_table(runs: list[dict[str, Any]], root: Path, times: list[float]) -> st
         evaluations = [(row["time/wall_time"], row[SUCCESS_KEY]) for row in rows
                        if SUCCESS_KEY in row and "time/wall_time" in row]
         iterations = [row for row in rows if "time/iteration_seconds" in row]
-        reached = next((seconds for seconds, success in evaluations if success >= 0.95), None)
+        reached = time_to_reach(rows, 0.95)  # (iteration, wall seconds) or None
+        reached_seconds = None if reached is None else reached[1]
         best = [max((success for seconds, success in evaluations if seconds <= limit), default=None)
                 for limit in times]
         later = [row["time/iteration_seconds"] for row in iterations[1:]]
@@ -315,7 +316,7 @@ def runs_table(runs: list[dict[str, Any]], root: Path, times: list[float]) -> st
         final = run["eval"]
         lines.append(
             f"| {Path(run['dir']).relative_to(root)} | {cell(start, '{:.1f} %')} | {best_text} % "
-            f"| {cell(reached, '{:.0f}')} | {final['success_rate'] * 100:.1f} % "
+            f"| {cell(reached_seconds, '{:.0f}')} | {final['success_rate'] * 100:.1f} % "
             f"| {final['instructions_per_episode']:.1f} "
             f"| {len(iterations)} | {cell(statistics.median(later) if later else None, '{:.2f}')} "
             f"({cell(statistics.median(relabel) if relabel else None, '{:.2f}')}) "
