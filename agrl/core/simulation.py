@@ -59,6 +59,13 @@ class DecisionResult(NamedTuple):
     outcome: torch.Tensor  # int64 Outcome code: RUNNING, SUCCESS or OUT_OF_AIRSPACE
 
 
+#: Inductor gives a CPU kernel several threads only from ``cpp.min_chunk_size`` (512) rows per thread: it counts
+#: elements, not work, and one row of this kernel is ``substeps_per_call`` integration steps of trigonometry.
+#: Parallel from the first row, a decision of 512 rows takes about 0.7 x the time on 2 threads, 4 096 rows
+#: about 0.6 x (docs/benchmarks.md, 2026-12-02 evening). Ignored on GPUs and with one thread.
+_INDUCTOR_OPTIONS = {"cpp.min_chunk_size": 1}
+
+
 def _substep(
     aircraft: AircraftState,
     destination: DestinationState,
@@ -132,7 +139,7 @@ class DecisionSimulator:
         self._substeps = _substeps
         self.substeps_per_call = substeps_per_call if compile else 1
         if compile:
-            self._substeps = torch.compile(_substeps, dynamic=None)
+            self._substeps = torch.compile(_substeps, dynamic=None, options=_INDUCTOR_OPTIONS)
 
     @property
     def compiled(self) -> bool:

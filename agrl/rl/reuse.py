@@ -101,23 +101,34 @@ def relabelled_ppo_targets(
 ) -> TensorDictBase:
     """What PPO needs for re-played trajectories ``(episodes, steps)``, computed on the ``valid`` rows only.
 
+    Each episode's valid rows are its first steps, in order (``valid`` is a prefix of every row of the table),
+    so the observation after step n is the one step n + 1 acts on.
+
     The behaviour log-probability is B's (``baseline_log_prob``), or, with ``actor`` given, that actor's
-    log-probability of B's action (``method.behaviour_log_prob=current``). The critic runs on the valid rows
-    (padding gets a value of 0 and is marked terminal by the caller, so it never reaches an advantage), then
-    ``advantage`` (a value estimator built without a value network, e.g. ``GAE(value_network=None)``) computes
-    the advantages and value targets along the time dimension.
+    log-probability of B's action (``method.behaviour_log_prob=current``). The critic runs once on each valid
+    row's observation and on the observation after each episode's last row (padding gets a value of 0 and is
+    marked terminal by the caller, so it never reaches an advantage), then ``advantage`` (a value estimator
+    built without a value network, e.g. ``GAE(value_network=None)``) computes the advantages and value targets
+    along the time dimension.
     """
+    device = valid.device
     rows = trajectories[valid]
     if actor is None:
         trajectories["action_log_prob"] = trajectories["baseline_log_prob"]
     else:
-        log_prob = torch.zeros(valid.shape, device=valid.device)
+        log_prob = torch.zeros(valid.shape, device=device)
         log_prob[valid] = actor.get_dist(rows).log_prob(rows["action"])
         trajectories["action_log_prob"] = log_prob
-    for source, key in ((rows, "state_value"), (rows["next"], ("next", "state_value"))):
-        value = torch.zeros(*valid.shape, 1, device=valid.device)
-        value[valid] = critic(source.select("observation"))["state_value"]
-        trajectories.set(key, value)
+    value = torch.zeros(*valid.shape, 1, device=device)
+    value[valid] = critic(rows.select("observation"))["state_value"]
+    next_value = torch.zeros_like(value)
+    next_value[:, :-1] = value[:, 1:]  # the value after step n is the value at step n + 1 ...
+    episode = valid.any(1).nonzero().squeeze(-1)
+    last = valid.sum(1)[episode] - 1
+    after_last = trajectories["next", "observation"][episode, last]  # ... except after an episode's last row
+    next_value[episode, last] = critic(TensorDict({"observation": after_last}, [episode.numel()]))["state_value"]
+    trajectories.set("state_value", value)
+    trajectories.set(("next", "state_value"), next_value)
     return advantage(trajectories)
 
 
@@ -413,23 +424,24 @@ class PolicyReuseTransform(Transform):
 
     def _baseline_mode(self, observation: torch.Tensor) -> torch.Tensor:
         """B's action in deterministic mode: the mode of its distribution (the argmax for a categorical)."""
+        return self._baseline_mode_and_log_prob(observation)[0]
+
+    def _baseline_mode_and_log_prob(self, observation: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """B's deterministic action and its log-probability under B, from one forward pass (the search keeps
+        both, so that the kept rows' B log-probability needs no second pass of B)."""
         if self._baseline_logits is not None:
             # What the actor computes in DETERMINISTIC mode (Categorical(logits).mode), without its TensorDict
             # and distribution wrappers: the search calls this once per time step (tested equal to the actor).
             logits = self._baseline_logits(observation)
-            # Categorical(logits=logits).mode, op for op: the normalised logits' softmax, then its argmax.
-            return torch.softmax(logits - logits.logsumexp(dim=-1, keepdim=True), dim=-1).argmax(dim=-1)
+            # Categorical(logits=logits), op for op: normalised logits; the mode is their softmax's argmax and
+            # the log-probability of an action its normalised logit.
+            normalised = logits - logits.logsumexp(dim=-1, keepdim=True)
+            action = torch.softmax(normalised, dim=-1).argmax(dim=-1)
+            return action, normalised.gather(-1, action[..., None]).squeeze(-1)
         query = TensorDict({"observation": observation}, batch_size=observation.shape[:-1], device=observation.device)
         with set_exploration_type(ExplorationType.DETERMINISTIC):
-            return self.baseline_actor(query)["action"]
-
-    def _baseline_log_prob(self, observation: torch.Tensor, action: torch.Tensor) -> torch.Tensor:
-        """B's log-probability of ``action`` (its own deterministic choice) on ``observation``."""
-        if self._baseline_logits is not None:
-            return torch.distributions.Categorical(logits=self._baseline_logits(observation),
-                                                   validate_args=False).log_prob(action)
-        query = TensorDict({"observation": observation}, batch_size=observation.shape[:-1], device=observation.device)
-        return self.baseline_actor.get_dist(query).log_prob(action)
+            action = self.baseline_actor(query)["action"]
+        return action, self.baseline_actor.get_dist(query).log_prob(action)
 
     def _search(
         self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor
@@ -463,6 +475,7 @@ class PolicyReuseTransform(Transform):
             action=torch.zeros(episodes, budget, dtype=torch.long, device=device),
             aircraft_state=aircraft.new_zeros(episodes, budget, aircraft.shape[-1]),
             destination_state=aircraft.new_zeros(episodes, budget, start_rows["destination_state"].shape[-1]),
+            baseline_log_prob=aircraft.new_zeros(episodes, budget),
         )
         pending = torch.arange(episodes, device=device)
         for wave in candidate_waves(candidates, self.keep):
@@ -508,9 +521,10 @@ class PolicyReuseTransform(Transform):
         for step in range(steps):
             if alive.numel() == 0:
                 break
-            action = self._baseline_mode(self._predicted_observation(aircraft, predicted, last_action))
+            action, log_prob = self._baseline_mode_and_log_prob(
+                self._predicted_observation(aircraft, predicted, last_action))
             result = self._simulate(aircraft, destination, motion[episode, step, 0], motion[episode, step, 1], action)
-            log.append((alive, action, result.aircraft_state, result.destination_state))
+            log.append((alive, action, result.aircraft_state, result.destination_state, log_prob))
             success = result.outcome == Outcome.SUCCESS
             if bool(success.any()):
                 arrival[episode[success], candidate[success]] = step + 1
@@ -536,7 +550,8 @@ class PolicyReuseTransform(Transform):
         kept_row = decided.nonzero().squeeze(-1) * size + position[best[kept_episode]]
         episode_of_row = torch.full((pending.numel() * size,), -1, dtype=torch.long, device=device)
         episode_of_row[kept_row] = kept_episode
-        rows, actions, aircraft_after, destination_after = (torch.cat(field) for field in zip(*log, strict=True))
+        rows, actions, aircraft_after, destination_after, log_probs = (
+            torch.cat(field) for field in zip(*log, strict=True))
         step_of = torch.repeat_interleave(torch.arange(len(log), device=device),
                                           torch.tensor([entry[0].numel() for entry in log], device=device))
         target = episode_of_row[rows]
@@ -545,6 +560,7 @@ class PolicyReuseTransform(Transform):
         record.action[target, step_of] = actions[kept]
         record.aircraft_state[target, step_of] = aircraft_after[kept]
         record.destination_state[target, step_of] = destination_after[kept]
+        record.baseline_log_prob[target, step_of] = log_probs[kept]
 
     def _simulate(
         self, aircraft: torch.Tensor, destination: torch.Tensor, destination_speed: torch.Tensor,
@@ -641,14 +657,9 @@ class PolicyReuseTransform(Transform):
         state["episode_return"] = torch.stack(returns, 1)[row, take]
         next_state["episode_return"] = state["episode_return"] + reward
         state["observation"] = self.env.observe(state)
-        # B's log-probability of its action on the observation it acted on (the destination predicted at t_n).
-        predicted = trajectory[row.squeeze(1), self.candidates[winner_index]][:, None].expand(-1, length, -1)
-        log_prob = torch.zeros(episodes, length, device=device)
-        log_prob[valid] = self._baseline_log_prob(
-            self._predicted_observation(state["aircraft_state"][valid], predicted[valid], state["last_action"][valid]),
-            action[valid],
-        )
-        state["baseline_log_prob"] = log_prob
+        # B's log-probability of its action on the observation it acted on (the destination predicted at t_n),
+        # as the search computed it.
+        state["baseline_log_prob"] = torch.where(valid, record.baseline_log_prob[:, :length], 0.0)
         trajectories = state.set("next", next_state)
         # Rows past an episode's end are padding: mark them terminal so GAE does not mix them in.
         trajectories["next", "done"] = trajectories["next", "done"] | ~valid[..., None]
@@ -660,9 +671,11 @@ class PolicyReuseTransform(Transform):
 
 
 class SearchRecord(NamedTuple):
-    """Each episode's kept rollout as the search ran it, per step ``(episodes, max_decisions, ...)``: B's action
-    and the simulator's result (the aircraft and destination states after the step)."""
+    """Each episode's kept rollout as the search ran it, per step ``(episodes, max_decisions, ...)``: B's action,
+    the simulator's result (the aircraft and destination states after the step) and B's log-probability of its
+    action."""
 
     action: torch.Tensor
     aircraft_state: torch.Tensor
     destination_state: torch.Tensor
+    baseline_log_prob: torch.Tensor

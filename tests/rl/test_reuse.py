@@ -376,26 +376,31 @@ class TiedLogits(torch.nn.Module):
         return logits
 
 
-@pytest.mark.parametrize("network", ["mlp", "tied"])
+@pytest.mark.parametrize("network", ["mlp", "tied", "actor"])
 def test_direct_logits_query_equals_the_actor_in_deterministic_mode(uniform, network):
     """The search calls B's logits network directly (no TensorDict, no distribution module); its actions and
-    log-probabilities are the ones B's TorchRL actor gives in deterministic mode, bitwise."""
+    log-probabilities are the ones B's TorchRL actor gives in deterministic mode, bitwise. ``actor``: the path
+    for actors whose logits network is not found, which queries the actor itself."""
     torch.manual_seed(3)
-    if network == "mlp":
+    if network == "tied":
+        baseline = as_actor(TiedLogits())
+    else:
         baseline = make_actor([16], "tanh")
         with torch.no_grad():
             baseline.module[0].module[-1].weight.mul_(300.0)  # confident and varied, as a trained B
-    else:
-        baseline = as_actor(TiedLogits())
     transform = uniform.transform(baseline)
     assert transform._baseline_logits is not None, "the actor's logits network is found"
+    if network == "actor":
+        transform._baseline_logits = None
     observation = torch.randn(4_096, OBSERVATION_SIZE)
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         expected = baseline(TensorDict({"observation": observation}, [observation.shape[0]]))
     assert expected["action"].unique().numel() > 1
     with set_exploration_type(ExplorationType.RANDOM):  # whatever the caller's setting
         assert torch.equal(transform._baseline_mode(observation), expected["action"])
-    assert torch.equal(transform._baseline_log_prob(observation, expected["action"]), expected["action_log_prob"])
+        action, log_prob = transform._baseline_mode_and_log_prob(observation)
+    assert torch.equal(action, expected["action"])
+    assert torch.equal(log_prob, expected["action_log_prob"])
 
 
 def test_success_ends_each_relabelled_episode_and_gae_does_not_look_past_it(relabelled):
