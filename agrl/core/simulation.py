@@ -59,11 +59,15 @@ class DecisionResult(NamedTuple):
     outcome: torch.Tensor  # int64 Outcome code: RUNNING, SUCCESS or OUT_OF_AIRSPACE
 
 
-#: Inductor gives a CPU kernel several threads only from ``cpp.min_chunk_size`` (512) rows per thread: it counts
-#: elements, not work, and one row of this kernel is ``substeps_per_call`` integration steps of trigonometry.
-#: Parallel from the first row, a decision of 512 rows takes about 0.7 x the time on 2 threads, 4 096 rows
-#: about 0.6 x (docs/benchmarks.md, 2026-12-02 evening). Ignored on GPUs and with one thread.
-_INDUCTOR_OPTIONS = {"cpp.min_chunk_size": 1}
+#: How inductor compiles the fused step (docs/benchmarks.md, 2026-12-02 evening, measured on a 2-core CPU):
+#: - ``cpp.min_chunk_size``: a CPU kernel gets several threads only from this many rows per thread (default
+#:   512). Inductor counts elements, not work, and one row here is ``substeps_per_call`` integration steps of
+#:   trigonometry: parallel from the first row, a decision of 4 096 rows takes about 0.6 x the time on 2 threads.
+#:   Ignored on GPUs and with one thread.
+#: - ``max_fusion_size``: at most this many operations per fused kernel (default 64) cut the ten steps into
+#:   three loops over the rows, passing the state between them through memory. One loop: a decision of
+#:   700-5 000 rows takes about 0.5 x the time, and the cold compilation is no longer.
+_INDUCTOR_OPTIONS = {"cpp.min_chunk_size": 1, "max_fusion_size": 100_000}
 
 
 def _substep(
