@@ -309,7 +309,8 @@ def runs_table(runs: list[dict[str, Any]], root: Path, times: list[float]) -> st
         best = [max((success for seconds, success in evaluations if seconds <= limit), default=None)
                 for limit in times]
         later = [row["time/iteration_seconds"] for row in iterations[1:]]
-        relabel = [row.get("time/reuse_seconds", 0.0) for row in iterations[1:]]
+        # Only reuse runs log a relabelling time; the other methods get "-", not a median of zeros.
+        relabel = [row["time/reuse_seconds"] for row in iterations[1:] if "time/reuse_seconds" in row]
         first = iterations[0] if iterations else {}
         start = evaluations[0][1] * 100 if evaluations else None
         best_text = " / ".join(cell(None if value is None else value * 100, "{:.0f}") for value in best)

@@ -161,11 +161,24 @@ def test_the_runs_table_gives_each_runs_curve_and_costs(tmp_path, capsys):
          "time/reuse_seconds": 0.5},
         {"frames": 300, "train/iteration": 3, "time/wall_time": 70.0, "time/iteration_seconds": 2.0,
          "time/reuse_seconds": 0.25, "eval/success_rate": 0.97}])
+    # A pre-trained run logs no relabelling time: its cells say so ("-"), not a median of zeros.
+    plain = tmp_path / "pretrained_s0"
+    (plain / ".hydra").mkdir(parents=True)
+    (plain / "eval").mkdir()
+    OmegaConf.save(OmegaConf.create({"task": {"name": "uniform", "speed": 50.0}, "method": {"name": "pretrained"}}),
+                   plain / ".hydra" / "config.yaml")
+    (plain / "eval" / "eval.json").write_text(json.dumps({"success_rate": 0.995, "instructions_per_episode": 10.0}))
+    write_scalars(plain, [
+        {"frames": 0, "train/iteration": 0, "time/wall_time": 0.0, "eval/success_rate": 0.9},
+        {"frames": 100, "train/iteration": 1, "time/wall_time": 5.0, "time/iteration_seconds": 4.0},
+        {"frames": 200, "train/iteration": 2, "time/wall_time": 7.0, "time/iteration_seconds": 1.5,
+         "eval/success_rate": 0.99}])
     assert main(["runs", str(tmp_path), "--times", "60", "120"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     assert lines[0].startswith("| run | evaluation before training | best evaluation by 60 / 120 s | s to 95 % |")
+    assert lines[2] == "| pretrained_s0 | 90.0 % | 99 / 99 % | 7 | 99.5 % | 10.0 | 2 | 1.50 (-) | 4.0 (-) |"
     # Best by 60 s: 60 % (the 97 % came at 70 s); medians over iterations 2-3: 2.5 s and 0.375 s of relabelling.
-    assert lines[2] == "| reuse_s0 | 0.4 % | 60 / 97 % | 70 | 98.7 % | 11.8 | 3 | 2.50 (0.38) | 8.0 (2.5) |"
+    assert lines[3] == "| reuse_s0 | 0.4 % | 60 / 97 % | 70 | 98.7 % | 11.8 | 3 | 2.50 (0.38) | 8.0 (2.5) |"
 
 
 def test_the_irregular_destination_is_named_without_a_speed(tmp_path):
