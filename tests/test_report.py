@@ -20,19 +20,25 @@ def write_scalars(run: Path, rows: list[dict[str, float]]) -> None:
     log.tensorboard.experiment.close()
 
 
-def make_run(root: Path, name: str, method: str, speed: float, success: float, curve: list[tuple[float, float]],
-             start_from_baseline: bool = False, training_seconds: float | None = None) -> Path:
-    """A finished run: its Hydra config, eval.json and TensorBoard scalars of (wall seconds, evaluation success)."""
+def write_run(root: Path, name: str, config: dict, evaluation: dict) -> Path:
+    """A finished run's folder as training leaves it: its Hydra config and final evaluation (eval.json)."""
     run = root / name
     (run / ".hydra").mkdir(parents=True)
     (run / "eval").mkdir()
+    OmegaConf.save(OmegaConf.create(config), run / ".hydra" / "config.yaml")
+    (run / "eval" / "eval.json").write_text(json.dumps(evaluation))
+    return run
+
+
+def make_run(root: Path, name: str, method: str, speed: float, success: float, curve: list[tuple[float, float]],
+             start_from_baseline: bool = False, training_seconds: float | None = None) -> Path:
+    """A finished run: its Hydra config, eval.json and TensorBoard scalars of (wall seconds, evaluation success)."""
     config = {"task": {"name": "uniform", "speed": speed}, "reward": {"name": "both"},
               "method": {"name": method, "start_from_baseline": start_from_baseline}, "seed": 0}
-    OmegaConf.save(OmegaConf.create(config), run / ".hydra" / "config.yaml")
     final = {"success_rate": success}
     if training_seconds is not None:
         final.update(training_wall_time_s=training_seconds, iterations=len(curve))
-    (run / "eval" / "eval.json").write_text(json.dumps(final))
+    run = write_run(root, name, config, final)
     # A point is (wall seconds, evaluation success) or (wall seconds, evaluation success, training success).
     write_scalars(run, [{"frames": i * 100, "train/iteration": i, "time/wall_time": point[0],
                          "eval/success_rate": point[1], "train/success_rate": point[-1]}
@@ -92,12 +98,8 @@ def test_the_final_evaluation_is_the_last_point_when_no_periodic_one_got_there(t
 def make_reward_run(root: Path, name: str, reward: str, evaluation: dict, curve: list[tuple[float, float]]) -> None:
     """A finished fixed-task run of one reward setting: eval.json as the trainer writes it, TensorBoard scalars
     of (wall seconds, periodic evaluation success)."""
-    run = root / name
-    (run / ".hydra").mkdir(parents=True)
-    (run / "eval").mkdir()
     config = {"task": {"name": "fixed"}, "reward": {"name": reward}, "method": {"name": "scratch"}, "seed": 0}
-    OmegaConf.save(OmegaConf.create(config), run / ".hydra" / "config.yaml")
-    (run / "eval" / "eval.json").write_text(json.dumps(evaluation))
+    run = write_run(root, name, config, evaluation)
     write_scalars(run, [{"frames": i * 100, "train/iteration": i, "time/wall_time": seconds,
                          "eval/success_rate": success, "train/success_rate": success}
                         for i, (seconds, success) in enumerate(curve)])
@@ -145,12 +147,8 @@ def test_metrics_rows_come_back_from_tensorboard_one_per_step(tmp_path):
 
 
 def test_the_runs_table_gives_each_runs_curve_and_costs(tmp_path, capsys):
-    run = tmp_path / "reuse_s0"
-    (run / ".hydra").mkdir(parents=True)
-    (run / "eval").mkdir()
-    OmegaConf.save(OmegaConf.create({"task": {"name": "uniform", "speed": 50.0}, "method": {"name": "reuse"}}),
-                   run / ".hydra" / "config.yaml")
-    (run / "eval" / "eval.json").write_text(json.dumps({"success_rate": 0.987, "instructions_per_episode": 11.84}))
+    run = write_run(tmp_path, "reuse_s0", {"task": {"name": "uniform", "speed": 50.0}, "method": {"name": "reuse"}},
+                    {"success_rate": 0.987, "instructions_per_episode": 11.84})
     # The initial evaluation (no iteration yet), then three iterations of 8, 3 and 2 s (relabelling 2.5, 0.5, 0.25);
     # evaluations at 20 s (60 %) and 70 s (97 %).
     write_scalars(run, [
@@ -162,12 +160,9 @@ def test_the_runs_table_gives_each_runs_curve_and_costs(tmp_path, capsys):
         {"frames": 300, "train/iteration": 3, "time/wall_time": 70.0, "time/iteration_seconds": 2.0,
          "time/reuse_seconds": 0.25, "eval/success_rate": 0.97}])
     # A pre-trained run logs no relabelling time: its cells say so ("-"), not a median of zeros.
-    plain = tmp_path / "pretrained_s0"
-    (plain / ".hydra").mkdir(parents=True)
-    (plain / "eval").mkdir()
-    OmegaConf.save(OmegaConf.create({"task": {"name": "uniform", "speed": 50.0}, "method": {"name": "pretrained"}}),
-                   plain / ".hydra" / "config.yaml")
-    (plain / "eval" / "eval.json").write_text(json.dumps({"success_rate": 0.995, "instructions_per_episode": 10.0}))
+    plain = write_run(tmp_path, "pretrained_s0",
+                      {"task": {"name": "uniform", "speed": 50.0}, "method": {"name": "pretrained"}},
+                      {"success_rate": 0.995, "instructions_per_episode": 10.0})
     write_scalars(plain, [
         {"frames": 0, "train/iteration": 0, "time/wall_time": 0.0, "eval/success_rate": 0.9},
         {"frames": 100, "train/iteration": 1, "time/wall_time": 5.0, "time/iteration_seconds": 4.0},
