@@ -255,10 +255,9 @@ class PolicyReuseTransform(Transform):
                                            rows.numel())
             succeeded |= dropped  # found, but their rows would fall past max_rows: neither own nor re-played
             if found.numel():
-                relabelled_rows = self._relabelled_trajectories(
-                    start_rows[found], trajectory[found], motion[found], winner_step[found], winner_index[found],
-                    SearchRecord(*(field[found] for field in record)),
-                )
+                kept = SearchRecord(*(field[found] for field in record))
+                relabelled_rows = self._relabelled_trajectories(start_rows[found], motion[found], winner_step[found],
+                                                                kept)
                 succeeded[found] = True
         replaced_ids = episode_ids[starts[succeeded]]
         keep_own = ~torch.isin(traj_ids, replaced_ids)
@@ -598,8 +597,7 @@ class PolicyReuseTransform(Transform):
         return index[fits], dropped
 
     def _relabelled_trajectories(
-        self, start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor, arrival: torch.Tensor,
-        winner_index: torch.Tensor, record: SearchRecord,
+        self, start_rows: TensorDictBase, motion: torch.Tensor, arrival: torch.Tensor, record: SearchRecord,
     ) -> TensorDictBase:
         """The kept candidates' episodes as full transitions, from the search's record; flat PPO rows.
 
@@ -608,7 +606,7 @@ class PolicyReuseTransform(Transform):
         real destination) is computed here for all kept episodes and steps in one batch ``(episodes, steps)``,
         then PPO's targets. Every recorded rollout ends at its success (step ``arrival - 1``).
         """
-        device = trajectory.device
+        device = motion.device
         episodes = start_rows.numel()
         length = int(arrival.max())
         steps = torch.arange(length, device=device)
