@@ -301,8 +301,7 @@ def runs_table(runs: list[dict[str, Any]], root: Path, times: list[float]) -> st
              "|---|---:|---|---:|---:|---:|---:|---:|---:|"]
     for run in sorted(runs, key=lambda run: str(run["dir"])):
         rows = run["metrics"]
-        evaluations = [(row["time/wall_time"], row[SUCCESS_KEY]) for row in rows
-                       if SUCCESS_KEY in row and "time/wall_time" in row]
+        evaluations = [(row["wall_time"], row[SUCCESS_KEY]) for row in rows if SUCCESS_KEY in row]
         iterations = [row for row in rows if "time/iteration_seconds" in row]
         reached = time_to_reach(rows, 0.95)  # (iteration, wall seconds) or None
         reached_seconds = None if reached is None else reached[1]
