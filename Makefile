@@ -34,7 +34,7 @@ test-slow: install
 bench: install
 	$(PY) -m agrl.bench $(ARGS)
 	$(PY) -m agrl.bench_reuse
-	$(PY) -m agrl.bench_peer --trainers agrl stable-baselines3 floor
+	$(PY) -m agrl.bench_peer --trainers agrl agrl-compiled stable-baselines3 floor
 
 lint: install
 	$(PY) -m ruff check agrl tests

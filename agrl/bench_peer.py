@@ -10,7 +10,10 @@ with ``--compile``, the ``torch.compile`` of the simulation step). Prints one ``
 line per trainer and a ``ratio`` line (agrl's decisions/s over stable-baselines3's; ``update_ratio`` and
 ``collection_ratio`` per part).
 
-``--trainers ... floor`` adds a third line: the same arithmetic with nothing around it (:func:`bench_floor`),
+``--trainers ... agrl-compiled`` adds agrl with ``ppo.compile_loss=true`` (the loss's forward and backward
+compiled, :class:`agrl.rl.ppo.CompiledLoss`), and its ratio.
+
+``--trainers ... floor`` adds a line: the same arithmetic with nothing around it (:func:`bench_floor`),
 plain PyTorch with no TensorDict, no loss module, no collector and no environment bookkeeping. It bounds what
 any trainer can reach on equal work on this machine, so a ``ratio_floor_over_sb3`` line says how far ahead of
 stable-baselines3 equal work can be at all.
@@ -30,6 +33,7 @@ Example::
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import statistics
@@ -160,15 +164,16 @@ def bench_sb3(num_envs: int, steps: int, minibatch: int, iterations: int, compil
 
 
 def bench_agrl(num_envs: int, steps: int, minibatch: int, iterations: int, compile: bool, seed: int,
-               task: dict) -> dict:
-    """agrl's Trainer (the one ``python -m agrl.train`` runs) with the same geometry: collection + GAE, update."""
+               task: dict, compile_loss: bool = False) -> dict:
+    """agrl's Trainer (the one ``python -m agrl.train`` runs) with the same geometry: collection + GAE, update.
+    ``compile_loss``: with ``ppo.compile_loss=true`` (its compilation falls in the warm-up iteration)."""
     from agrl.config import compose_config, load_config
     from agrl.rl.trainer import Trainer
 
     overrides = [
         f"task={task['task']}", f"ppo.num_envs={num_envs}", f"ppo.steps_per_env={steps}",
         f"ppo.minibatch_size={minibatch}", "curriculum.enabled=false", "progress=false",
-        f"seed={seed}", f"simulation.compile={str(compile).lower()}",
+        f"seed={seed}", f"simulation.compile={str(compile).lower()}", f"ppo.compile_loss={str(compile_loss).lower()}",
     ]
     config = load_config(compose_config(*overrides))
     with tempfile.TemporaryDirectory() as folder:
@@ -183,7 +188,8 @@ def bench_agrl(num_envs: int, steps: int, minibatch: int, iterations: int, compi
             collection.append(middle - start)
             update.append(time.perf_counter() - middle)
         trainer.collector.shutdown()
-    return iteration_record("agrl", collection[1:], update[1:], num_envs * steps)
+    return iteration_record("agrl (compiled loss)" if compile_loss else "agrl", collection[1:], update[1:],
+                            num_envs * steps)
 
 
 def bench_floor(num_envs: int, steps: int, minibatch: int, iterations: int, compile: bool, seed: int,
@@ -277,7 +283,8 @@ def bench_floor(num_envs: int, steps: int, minibatch: int, iterations: int, comp
     return iteration_record("floor (plain PyTorch)", collection[1:], update_time[1:], num_envs * steps)
 
 
-TRAINERS = {"agrl": bench_agrl, "stable-baselines3": bench_sb3, "floor": bench_floor}
+TRAINERS = {"agrl": bench_agrl, "agrl-compiled": functools.partial(bench_agrl, compile_loss=True),
+            "stable-baselines3": bench_sb3, "floor": bench_floor}
 
 
 def _ratio(name: str, numerator: dict, sb3: dict, args, threads: int, load: float) -> dict:
@@ -298,8 +305,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="fuse the simulation step with torch.compile in both (default on, as training)")
     parser.add_argument("--threads", type=int, default=None, help="torch threads for both (default torch's)")
     parser.add_argument("--trainers", nargs="+", choices=tuple(TRAINERS), default=["agrl", "stable-baselines3"],
-                        help="which trainers to time (default agrl and stable-baselines3; floor: the same "
-                             "arithmetic in plain PyTorch, a lower bound)")
+                        help="which trainers to time (default agrl and stable-baselines3; agrl-compiled: agrl with "
+                             "ppo.compile_loss=true; floor: the same arithmetic in plain PyTorch, a lower bound)")
     parser.add_argument("--task", default="fixed")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
@@ -321,10 +328,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                                              args.compile, args.seed, task)
         print(json.dumps(records[trainer]), flush=True)
     if "stable-baselines3" in records:
-        for trainer in ("agrl", "floor"):
+        for trainer in ("agrl", "agrl-compiled", "floor"):
             if trainer in records:
-                print(json.dumps(_ratio(f"ratio_{trainer}_over_sb3", records[trainer], records["stable-baselines3"],
-                                        args, torch.get_num_threads(), load)), flush=True)
+                name = f"ratio_{trainer.replace('-', '_')}_over_sb3"
+                print(json.dumps(_ratio(name, records[trainer], records["stable-baselines3"], args,
+                                        torch.get_num_threads(), load)), flush=True)
     return 0
 
 

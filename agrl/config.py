@@ -237,6 +237,7 @@ class PPOConfig:
     critic_coeff: float = MISSING
     max_grad_norm: float = MISSING
     anneal_lr: bool = MISSING
+    compile_loss: bool = MISSING  # torch.compile the loss's forward and backward (agrl.rl.ppo.CompiledLoss)
     collector_workers: int = MISSING  # 1 = one Collector in this process; N > 1 = MultiSyncCollector
 
     def __post_init__(self) -> None:

@@ -25,8 +25,8 @@ from agrl.rl.checkpoint import CheckpointError, load_checkpoint, resolve_checkpo
 log = logging.getLogger("agrl.train")
 
 #: Values a resumed run may take from the command line; all else comes from the checkpoint.
-RESUMABLE_OVERRIDES = ("ppo.total_frames", "ppo.max_minutes", "target_success", "progress", "device", "threads",
-                       "checkpoint_interval", "eval.")
+RESUMABLE_OVERRIDES = ("ppo.total_frames", "ppo.max_minutes", "ppo.compile_loss", "target_success", "progress",
+                       "device", "threads", "checkpoint_interval", "eval.")
 
 
 def _resume_config(cfg: DictConfig, reference: str) -> tuple[DictConfig, dict, Path]:

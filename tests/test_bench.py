@@ -91,22 +91,23 @@ def test_iteration_record_reports_the_median_split():
 
 
 def test_peer_benchmark_prints_the_split_for_each_trainer_and_the_ratios():
-    """``python -m agrl.bench_peer`` at a tiny geometry: one iteration line per trainer (agrl, SB3 and the plain
-    PyTorch floor), then each one's ratio to SB3."""
+    """``python -m agrl.bench_peer`` at a tiny geometry: one iteration line per trainer (agrl, agrl with the
+    compiled loss, SB3 and the plain PyTorch floor), then each one's ratio to SB3."""
     command = [sys.executable, "-m", "agrl.bench_peer", "--num-envs", "16", "--steps", "8", "--iterations", "2",
-               "--minibatch", "64", "--no-compile", "--threads", "1", "--trainers", "agrl", "stable-baselines3",
-               "floor"]
+               "--minibatch", "64", "--no-compile", "--threads", "1", "--trainers", "agrl", "agrl-compiled",
+               "stable-baselines3", "floor"]
     completed = subprocess.run(command, capture_output=True, text=True, timeout=600)
     assert completed.returncode == 0, completed.stderr
     records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
-    assert [record["name"] for record in records] == ["ppo_iteration_seconds"] * 3 + [
-        "ratio_agrl_over_sb3", "ratio_floor_over_sb3"]
-    assert [record["trainer"] for record in records[:3]] == ["agrl", "stable-baselines3", "floor (plain PyTorch)"]
-    for record in records[:3]:
+    assert [record["name"] for record in records] == ["ppo_iteration_seconds"] * 4 + [
+        "ratio_agrl_over_sb3", "ratio_agrl_compiled_over_sb3", "ratio_floor_over_sb3"]
+    assert [record["trainer"] for record in records[:4]] == ["agrl", "agrl (compiled loss)", "stable-baselines3",
+                                                            "floor (plain PyTorch)"]
+    for record in records[:4]:
         assert record["decisions_per_iteration"] == 128 and record["iterations_timed"] == 2
         assert 0 < record["collection_s"] and 0 < record["update_s"] and record["unit"] == "s/iteration"
-    agrl, sb3, floor = records[:3]
-    for ratio, trainer in zip(records[3:], (agrl, floor), strict=True):
+    agrl, compiled, sb3, floor = records[:4]
+    for ratio, trainer in zip(records[4:], (agrl, compiled, floor), strict=True):
         expected = trainer["decisions_per_second"] / sb3["decisions_per_second"]
         assert ratio["value"] == pytest.approx(expected, rel=1e-2) and ratio["threads"] == 1
         assert ratio["update_ratio"] == pytest.approx(sb3["update_s"] / trainer["update_s"], rel=1e-2)

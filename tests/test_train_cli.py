@@ -301,8 +301,8 @@ def test_candidate_stride_beyond_the_decision_budget_is_one_line(bad_runs):
 def test_resuming_with_another_num_envs_is_refused_and_leaves_the_run_alone(bad_runs, tiny_run):
     line = single_error_line(bad_runs["resume-other-num-envs"], 2)
     assert line == ("agrl.train: error: ppo.num_envs=64 is not allowed with resume: a resumed run keeps its "
-                    "saved config; only ppo.total_frames, ppo.max_minutes, target_success, progress, device, threads, "
-                    "checkpoint_interval, eval.* may be given")
+                    "saved config; only ppo.total_frames, ppo.max_minutes, ppo.compile_loss, target_success, progress, "
+                    "device, threads, checkpoint_interval, eval.* may be given")
     latest = bad_runs["resumable"] / "checkpoints" / "latest.pt"
     assert latest.read_bytes() == (tiny_run.run_dir / "checkpoints" / "latest.pt").read_bytes()
 

@@ -43,6 +43,7 @@ from agrl.rl.evaluation import instruction_latency_ms, run_episodes, summarise, 
 from agrl.rl.metrics import MetricsLog, episode_statistics, progress_line
 from agrl.rl.models import make_actor, make_critic
 from agrl.rl.ppo import (
+    CompiledLoss,
     TrainingDiverged,
     annealed_learning_rate,
     clip_fraction_by_source,
@@ -179,6 +180,8 @@ class Trainer:
         self.replay_advantage = make_advantage(gamma, ppo.gae_lambda, None, self.device)
         self.loss = make_loss(self.actor, self.critic, ppo.clip_epsilon, ppo.entropy_coeff, ppo.critic_coeff)
         self.optimizer = make_optimizer(self.loss, ppo.learning_rate)
+        # What the update calls: the loss itself, or the same loss compiled (ppo.compile_loss).
+        self.update_loss = CompiledLoss(self.loss) if ppo.compile_loss else self.loss
 
     def _storage_size(self) -> int:
         # Relabelled episodes may be longer than the rows they replace (bounded in agrl.rl.reuse).
@@ -286,7 +289,7 @@ class Trainer:
         relabel_time = time.perf_counter() - relabel_start
         ppo = self.cfg.ppo
         try:
-            losses = ppo_update(self.loss, self.optimizer, self.buffer, ppo.epochs, ppo.max_grad_norm,
+            losses = ppo_update(self.update_loss, self.optimizer, self.buffer, ppo.epochs, ppo.max_grad_norm,
                                 where=f"at iteration {self.counters.iteration + 1}")
         except TrainingDiverged as error:
             raise TrainingDiverged(f"{error}; last good checkpoint kept in {self.checkpoint_dir}") from None

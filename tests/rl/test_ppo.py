@@ -1,10 +1,11 @@
-"""PPO pieces: the learning-rate schedule and the update's divergence guard (agrl.rl.ppo)."""
+"""PPO pieces: the learning-rate schedule and the compiled loss (agrl.rl.ppo)."""
 
 from __future__ import annotations
 
 import pytest
+import torch
 
-from agrl.rl.ppo import annealed_learning_rate
+from agrl.rl.ppo import LOGGED_LOSS_TERMS, CompiledLoss, annealed_learning_rate
 from agrl.rl.trainer import Trainer
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
@@ -26,3 +27,72 @@ def test_trainer_applies_the_schedule_each_iteration(tmp_path, compose_train, ti
     trainer.train()
     assert trainer.counters.iteration == 2
     assert trainer.optimizer.param_groups[0]["lr"] == pytest.approx(1.5e-4 if anneal else 3e-4)
+
+
+def _loss_and_batch(rows: int = 512):
+    """A fresh loss over 2 x 128 networks and one minibatch with the fields the update reads."""
+    from tensordict import TensorDict
+
+    from agrl.core.observation import observation_size
+    from agrl.rl.models import make_actor, make_critic
+    from agrl.rl.ppo import make_loss
+
+    torch.manual_seed(0)
+    actor, critic = make_actor([128, 128], "tanh"), make_critic([128, 128], "tanh")
+    batch = TensorDict({"observation": torch.randn(rows, observation_size("relative"))}, [rows])
+    with torch.no_grad():
+        actor(batch)
+        critic(batch)
+    batch["advantage"] = torch.randn(rows, 1)
+    batch["value_target"] = batch["state_value"] + torch.randn(rows, 1)
+    # Move the networks off the behaviour policy, so that the ratio and the clipping are exercised.
+    with torch.no_grad():
+        for parameter in actor.parameters():
+            parameter.add_(0.05 * torch.randn_like(parameter))
+    return make_loss(actor, critic, clip_epsilon=0.2, entropy_coeff=0.01, critic_coeff=0.5), batch
+
+
+def _terms_and_gradients(loss_module, loss_parameters, batch):
+    losses = loss_module(batch)
+    total = losses["loss_objective"] + losses["loss_critic"] + losses["loss_entropy"]
+    gradients = torch.autograd.grad(total, loss_parameters)
+    return {key: losses[key].detach() for key in LOGGED_LOSS_TERMS if key in losses.keys()}, gradients
+
+
+def test_compiled_loss_computes_the_eager_loss_and_gradients():
+    loss, batch = _loss_and_batch()
+    parameters = list(loss.parameters())
+    eager_terms, eager_gradients = _terms_and_gradients(loss, parameters, batch)
+    compiled = CompiledLoss(loss)
+    compiled_terms, compiled_gradients = _terms_and_gradients(compiled, parameters, batch)
+    assert compiled.compiled  # no fallback: the comparison is between the two paths
+    assert eager_terms["clip_fraction"] > 0
+    assert eager_terms.keys() == compiled_terms.keys()
+    for key, value in eager_terms.items():
+        torch.testing.assert_close(compiled_terms[key], value, rtol=1e-4, atol=1e-6, msg=key)
+    for eager, fused in zip(eager_gradients, compiled_gradients, strict=True):
+        torch.testing.assert_close(fused, eager, rtol=1e-4, atol=1e-6)
+
+
+def test_compiled_loss_falls_back_to_the_eager_loss_when_compilation_fails(monkeypatch):
+    def failing_compile(module, *args, **kwargs):
+        def compiled(*call_args, **call_kwargs):
+            raise RuntimeError("no C++ compiler")
+        return compiled
+
+    loss, batch = _loss_and_batch(64)
+    monkeypatch.setattr(torch, "compile", failing_compile)
+    compiled = CompiledLoss(loss)
+    with pytest.warns(RuntimeWarning, match="torch.compile of the PPO loss failed.*no C\\+\\+ compiler"):
+        losses = compiled(batch)
+    assert not compiled.compiled
+    torch.testing.assert_close(losses["loss_objective"], loss(batch)["loss_objective"])
+
+
+def test_trainer_updates_through_the_compiled_loss(tmp_path, compose_train, tiny_args):
+    config = compose_train(*tiny_args({"ppo.total_frames": 512, "ppo.compile_loss": "true", "eval.episodes": 4}))
+    trainer = Trainer(config, tmp_path / "run")
+    before = [parameter.detach().clone() for parameter in trainer.actor.parameters()]
+    trainer.train()
+    assert isinstance(trainer.update_loss, CompiledLoss) and trainer.update_loss.compiled
+    assert any(not torch.equal(old, new) for old, new in zip(before, trainer.actor.parameters(), strict=True))
