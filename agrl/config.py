@@ -270,6 +270,7 @@ class MethodConfig:
     start_from_baseline: bool | None = None  # Z starts from B's weights (reuse + pre-training)
     relabel_unfinished: bool | None = None  # false: an episode running at a batch's end is searched once, when it ends
     relabel_own_successes: bool | None = None  # false: episodes Z flew to a success keep Z's rows (not searched)
+    equal_update_cost: bool | None = None  # true: as many minibatches per update as a plain iteration's, over all rows
 
     def __post_init__(self) -> None:
         _require(self.name in ("scratch", "pretrained", "reuse"), "method", self.name,
@@ -281,7 +282,8 @@ class MethodConfig:
         if self.name != "reuse":
             return
         for key in ("initial_selection_factor", "selection_decay", "candidate_stride", "max_candidates", "keep",
-                    "behaviour_log_prob", "start_from_baseline", "relabel_unfinished", "relabel_own_successes"):
+                    "behaviour_log_prob", "start_from_baseline", "relabel_unfinished", "relabel_own_successes",
+                    "equal_update_cost"):
             _require(getattr(self, key) is not None, f"method.{key}", None, "method=reuse needs a value")
         _require(0 <= self.initial_selection_factor <= 1, "method.initial_selection_factor",
                  self.initial_selection_factor, "[0, 1]")

@@ -83,8 +83,10 @@ def ppo_update(
     epochs: int,
     max_grad_norm: float,
     where: str,
+    max_updates: int | None = None,
 ) -> dict[str, float]:
-    """``epochs`` passes over the buffer in minibatches; the mean of each logged loss term.
+    """``epochs`` passes over the buffer in minibatches, stopping after ``max_updates`` minibatches if given; the
+    mean of each logged loss term.
 
     Raises :class:`TrainingDiverged` (naming ``where`` and the update) on a non-finite loss or gradient,
     before the optimiser step, so the parameters stay finite.
@@ -94,6 +96,8 @@ def ppo_update(
     parameters = list(loss.parameters())  # once: loss.parameters() walks every submodule of actor and critic
     for _ in range(epochs):
         for batch in buffer:
+            if max_updates is not None and updates >= max_updates:
+                break  # the sampler's unfinished pass is dropped by the next update's buffer.empty()
             losses = loss(batch)
             total = losses["loss_objective"] + losses["loss_critic"] + losses["loss_entropy"]
             if not torch.isfinite(total):

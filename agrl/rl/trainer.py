@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 import functools
 import logging
+import math
 import sys
 import time
 from dataclasses import dataclass
@@ -290,10 +291,17 @@ class Trainer:
         ppo = self.cfg.ppo
         try:
             losses = ppo_update(self.update_loss, self.optimizer, self.buffer, ppo.epochs, ppo.max_grad_norm,
-                                where=f"at iteration {self.counters.iteration + 1}")
+                                where=f"at iteration {self.counters.iteration + 1}", max_updates=self._max_updates())
         except TrainingDiverged as error:
             raise TrainingDiverged(f"{error}; last good checkpoint kept in {self.checkpoint_dir}") from None
         return data, losses, relabel_time
+
+    def _max_updates(self) -> int | None:
+        """``method.equal_update_cost``: the minibatches of a plain iteration (``ppo.epochs`` passes over one
+        collected batch), however many rows the reuse transform stored; None: ``ppo.epochs`` passes over them all."""
+        if not self.cfg.method.equal_update_cost:
+            return None
+        return self.cfg.ppo.epochs * math.ceil(self.frames_per_batch / self.cfg.ppo.minibatch_size)
 
     def _evaluation_due(self) -> bool:
         schedule = self.cfg.eval

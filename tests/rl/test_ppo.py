@@ -96,3 +96,48 @@ def test_trainer_updates_through_the_compiled_loss(tmp_path, compose_train, tiny
     trainer.train()
     assert isinstance(trainer.update_loss, CompiledLoss) and trainer.update_loss.compiled
     assert any(not torch.equal(old, new) for old, new in zip(before, trainer.actor.parameters(), strict=True))
+
+
+def _adam_steps(optimizer) -> int:
+    return int(next(iter(optimizer.state.values()))["step"])
+
+
+@pytest.mark.parametrize(("max_updates", "expected"), [(None, 4 * 6), (10, 10), (100, 4 * 6)])
+def test_ppo_update_stops_after_max_updates_minibatches(max_updates, expected):
+    """6 minibatches per pass over 3 072 rows, 4 passes: ``max_updates`` cuts them short (never lengthens them)."""
+    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+    from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
+
+    from agrl.rl.ppo import make_optimizer, ppo_update
+
+    loss, batch = _loss_and_batch(3072)
+    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(3072), sampler=SamplerWithoutReplacement(),
+                                    batch_size=512)
+    buffer.extend(batch)
+    optimizer = make_optimizer(loss, 1e-4)
+    ppo_update(loss, optimizer, buffer, epochs=4, max_grad_norm=0.5, where="here", max_updates=max_updates)
+    assert _adam_steps(optimizer) == expected
+    # The next update starts a fresh pass: an emptied and refilled buffer yields all its minibatches again.
+    buffer.empty()
+    buffer.extend(batch)
+    ppo_update(loss, optimizer, buffer, epochs=1, max_grad_norm=0.5, where="here")
+    assert _adam_steps(optimizer) == expected + 6
+
+
+def test_equal_update_cost_gives_a_reuse_update_the_minibatches_of_a_plain_iteration(compose_train, tmp_path):
+    """One reuse iteration of 16 x 8 decisions whose buffer holds more rows than it collected (relabelled episodes
+    are longer): 3 passes over all rows by default, 3 passes' worth of one batch (3 x ceil(128 / 48)) with the switch."""
+    import math
+
+    overrides = ["method=reuse", "ppo.num_envs=16", "ppo.steps_per_env=8", "ppo.minibatch_size=48", "ppo.epochs=3",
+                 "ppo.total_frames=128", "simulation.compile=false", "eval.interval=0", "eval.episodes=4",
+                 "progress=false", "seed=3"]
+    steps, rows = {}, {}
+    for equal in (False, True):
+        trainer = Trainer(compose_train(*overrides, f"method.equal_update_cost={str(equal).lower()}"),
+                          tmp_path / str(equal))
+        trainer.train()
+        steps[equal], rows[equal] = _adam_steps(trainer.optimizer), len(trainer.buffer)
+    assert rows[False] == rows[True] > 128  # the same relabelling: only the update differs
+    assert steps[False] == 3 * math.ceil(rows[False] / 48)
+    assert steps[True] == 3 * math.ceil(128 / 48)
