@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# The 100 m/s race of 2026-12-02 (night), run from the repository root, one run at a time on the otherwise idle VM:
+# pre-training, reuse + B (defaults), reuse + B with method.equal_update_cost=true and Algorithm 1 (Z from scratch)
+# with it, 3 seeds, methods interleaved per seed. Output: sitting.log and one folder per run.
+set -u
+out=docs/results/runs/equal_update_2026-12-02
+log=$out/sitting.log
+py=.venv/bin/python
+stamp() { echo "## $(date -u +%FT%TZ) commit $(git rev-parse --short HEAD) load $(cut -d' ' -f1-3 /proc/loadavg): $*" >> "$log"; }
+race() {  # race <name> <seed> <overrides...>
+  local name=$1 seed=$2; shift 2
+  stamp "$name seed $seed"
+  $py -m agrl.train progress=false task=uniform speed=100 "seed=$seed" ppo.max_minutes=4 target_success=0.99 \
+      eval.interval_seconds=15 "$@" "hydra.run.dir=$out/${name}_s$seed" >> "$log" 2>&1
+}
+for seed in 0 1 2; do
+  race pretrained "$seed" method=pretrained
+  race reuseB_equal "$seed" method=reuse method.start_from_baseline=true method.equal_update_cost=true
+  race reuse_equal "$seed" method=reuse method.equal_update_cost=true
+  race reuseB "$seed" method=reuse method.start_from_baseline=true
+done
+stamp done
