@@ -1,4 +1,4 @@
-"""PPO pieces: the learning-rate schedule and the compiled loss (agrl.rl.ppo)."""
+"""PPO pieces: the learning-rate schedule, the compiled loss and the update's minibatch cap (agrl.rl.ppo)."""
 
 from __future__ import annotations
 
@@ -125,8 +125,9 @@ def test_ppo_update_stops_after_max_updates_minibatches(max_updates, expected):
 
 
 def test_equal_update_cost_gives_a_reuse_update_the_minibatches_of_a_plain_iteration(compose_train, tmp_path):
-    """One reuse iteration of 16 x 8 decisions whose buffer holds more rows than it collected (relabelled episodes
-    are longer): 3 passes over all rows by default, 3 passes' worth of one batch (3 x ceil(128 / 48)) with the switch."""
+    """One reuse iteration of 16 x 8 decisions whose buffer holds more rows than it collected (relabelled
+    episodes are longer): 3 passes over all rows by default, 3 passes' worth of one batch (3 x ceil(128 / 48))
+    with the switch."""
     import math
 
     overrides = ["method=reuse", "ppo.num_envs=16", "ppo.steps_per_env=8", "ppo.minibatch_size=48", "ppo.epochs=3",
