@@ -13,7 +13,6 @@ on a CPU the per-call overhead (about 50 us) otherwise dominates small batches.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -27,6 +26,7 @@ from agrl.core.aircraft import (
     integrate_aircraft,
     wrap_angle,
 )
+from agrl.core.compiled import EagerFallback
 from agrl.core.destinations import DestinationState, move_destination
 from agrl.core.termination import Airspace, Outcome, SuccessTolerance, is_outside_airspace, is_success
 
@@ -139,15 +139,13 @@ class DecisionSimulator:
                 f"substeps_per_call={substeps_per_call} is not allowed: a divisor of the {self.substeps} "
                 "integration steps of a decision"
             )
-        self._compiled = compile
-        self._substeps = _substeps
         self.substeps_per_call = substeps_per_call if compile else 1
-        if compile:
-            self._substeps = torch.compile(_substeps, dynamic=None, options=_INDUCTOR_OPTIONS)
+        compiled = torch.compile(_substeps, dynamic=None, options=_INDUCTOR_OPTIONS) if compile else _substeps
+        self._substeps = EagerFallback(compiled, _substeps, "the simulation step")
 
     @property
     def compiled(self) -> bool:
-        return self._compiled
+        return self._substeps.compiled
 
     def __call__(
         self,
@@ -188,17 +186,4 @@ class DecisionSimulator:
         return DecisionResult(aircraft.to_tensor(), destination.to_tensor(), outcome)
 
     def _run_substeps(self, *args):
-        try:
-            return self._substeps(*args, self.params, self.substeps_per_call)
-        except Exception as error:  # noqa: BLE001 - any compiler failure falls back to eager
-            if self._substeps is _substeps:
-                raise
-            warnings.warn(
-                f"torch.compile of the simulation step failed ({type(error).__name__}: {error}); "
-                "running eagerly",
-                RuntimeWarning,
-                stacklevel=3,
-            )
-            self._substeps = _substeps
-            self._compiled = False
-            return _substeps(*args, self.params, self.substeps_per_call)
+        return self._substeps(*args, self.params, self.substeps_per_call)

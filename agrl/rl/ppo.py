@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import warnings
-
 import torch
 from tensordict import TensorDictBase
 from torchrl.data import TensorDictReplayBuffer
 from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
+
+from agrl.core.compiled import EagerFallback
 
 #: Loss outputs averaged over an iteration's updates and logged as ``loss/<name>``.
 LOGGED_LOSS_TERMS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction",
@@ -45,22 +45,19 @@ class CompiledLoss(torch.nn.Module):
     def __init__(self, loss: ClipPPOLoss):
         super().__init__()
         self.loss = loss
-        self._forward = torch.compile(loss)
+        self._forward = EagerFallback(torch.compile(loss), loss, "the PPO loss")
 
     def forward(self, batch: TensorDictBase) -> TensorDictBase:
-        try:
-            return self._forward(batch)
-        except Exception as error:  # noqa: BLE001 - any compiler failure falls back to the eager loss
-            if self._forward is self.loss:
-                raise
-            warnings.warn(f"torch.compile of the PPO loss failed ({type(error).__name__}: {error}); running eagerly",
-                          RuntimeWarning, stacklevel=2)
-            self._forward = self.loss
-            return self.loss(batch)
+        return self._forward(batch)
 
     @property
     def compiled(self) -> bool:
-        return self._forward is not self.loss
+        return self._forward.compiled
+
+
+def total_loss(losses: TensorDictBase) -> torch.Tensor:
+    """What the update minimises: the clipped objective plus the critic's and the entropy's terms."""
+    return losses["loss_objective"] + losses["loss_critic"] + losses["loss_entropy"]
 
 
 def make_optimizer(loss: ClipPPOLoss, learning_rate: float) -> torch.optim.Adam:
@@ -100,7 +97,7 @@ def ppo_update(
             if max_updates is not None and updates >= max_updates:
                 break  # the sampler's unfinished pass is dropped by the next update's buffer.empty()
             losses = loss(batch)
-            total = losses["loss_objective"] + losses["loss_critic"] + losses["loss_entropy"]
+            total = total_loss(losses)
             if not torch.isfinite(total):
                 raise TrainingDiverged(f"non-finite loss ({total.item()}) {where}, update {updates + 1}")
             optimizer.zero_grad(set_to_none=True)

@@ -166,3 +166,28 @@ def test_compiled_matches_eager_on_shrinking_batches(simulation, controls):
         torch.testing.assert_close(compiled[1], eager[1], rtol=1e-5, atol=1e-2, msg=f"destination, {count} rows")
         torch.testing.assert_close(compiled[0][:, 3:], eager[0][:, 3:], rtol=1e-5, atol=1e-4,
                                    msg=f"speeds and angles, {count} rows")
+
+
+def _failing_compile(function, *args, **kwargs):
+    def compiled(*call_args, **call_kwargs):
+        raise RuntimeError("no C++ compiler")
+    return compiled
+
+
+def test_a_simulator_whose_compilation_fails_warns_once_and_runs_eagerly(monkeypatch, paper_parameters):
+    params = paper_parameters.simulation
+    controls = paper_parameters.maneuvers.controls("cpu")
+    aircraft, destination, speed, turn_rate, generator = random_batch(8, seed=2, limits=params.limits)
+    actions = [torch.randint(0, 7, (8,), generator=generator) for _ in range(2)]
+    eager = run(DecisionSimulator(params, controls), aircraft, destination, speed, turn_rate, actions)
+
+    monkeypatch.setattr(torch, "compile", _failing_compile)
+    simulator = DecisionSimulator(params, controls, compile=True)
+    assert simulator.compiled
+    failure = "torch.compile of the simulation step failed.*no C\\+\\+ compiler"
+    with pytest.warns(RuntimeWarning, match=failure) as caught:
+        fallen_back = run(simulator, aircraft, destination, speed, turn_rate, actions)  # 2 decisions, 30 calls
+    assert sum("simulation step failed" in str(warning.message) for warning in caught) == 1  # once, not per call
+    assert not simulator.compiled
+    for result, expected in zip(fallen_back, eager, strict=True):
+        torch.testing.assert_close(result, expected)

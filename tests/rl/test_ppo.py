@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from agrl.rl.ppo import LOGGED_LOSS_TERMS, CompiledLoss, annealed_learning_rate
+from agrl.rl.ppo import LOGGED_LOSS_TERMS, CompiledLoss, annealed_learning_rate, total_loss
 from agrl.rl.trainer import Trainer
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
@@ -54,8 +54,7 @@ def _loss_and_batch(rows: int = 512):
 
 def _terms_and_gradients(loss_module, loss_parameters, batch):
     losses = loss_module(batch)
-    total = losses["loss_objective"] + losses["loss_critic"] + losses["loss_entropy"]
-    gradients = torch.autograd.grad(total, loss_parameters)
+    gradients = torch.autograd.grad(total_loss(losses), loss_parameters)
     return {key: losses[key].detach() for key in LOGGED_LOSS_TERMS if key in losses.keys()}, gradients
 
 
