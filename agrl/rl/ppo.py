@@ -37,7 +37,7 @@ class CompiledLoss(torch.nn.Module):
 
     The same function as ``loss`` (to float rounding; ``tests/rl/test_ppo.py``). A minibatch of 512 rows is a
     few dozen small kernels and TensorDict bookkeeping in eager mode; compiled, the update took 0.76-0.83 x the time
-    in ``python -m agrl.bench_peer``, for a compilation on the first minibatch (1.5-2 s more
+    in ``python -m agrl.bench_peer``, for a compilation on the first minibatch (1.5-2.1 s more
     with inductor's cache warm), but ``make train`` was no shorter (docs/benchmarks.md, 2026-12-02 night).
     If compilation fails (no C++ compiler, an unsupported platform) it warns once and stays eager.
     """
