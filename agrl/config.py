@@ -302,6 +302,7 @@ class EvaluationConfig:
     interval_seconds: float = MISSING  # s of training between periodic evaluations; > 0 replaces `interval`
     periodic_episodes: int = MISSING  # episodes of each periodic evaluation
     trajectory_image: bool = MISSING  # log each periodic evaluation's trajectory figure to TensorBoard (Images)
+    min_train_success: float = MISSING  # periodic evaluations wait for this training success on the full start box
 
     def __post_init__(self) -> None:
         _require(self.episodes >= 1, "eval.episodes", self.episodes, ">= 1")
@@ -309,6 +310,8 @@ class EvaluationConfig:
         _require(self.interval_seconds >= 0, "eval.interval_seconds", self.interval_seconds,
                  ">= 0 s (0 = evaluate every eval.interval iterations)")
         _require(self.periodic_episodes >= 1, "eval.periodic_episodes", self.periodic_episodes, ">= 1")
+        _require(0.0 <= self.min_train_success <= 1.0, "eval.min_train_success", self.min_train_success,
+                 "in [0, 1] (0 = no wait)")
 
 
 @dataclass

@@ -303,8 +303,11 @@ class Trainer:
             return None
         return self.cfg.ppo.epochs * math.ceil(self.frames_per_batch / self.cfg.ppo.minibatch_size)
 
-    def _evaluation_due(self) -> bool:
+    def _evaluation_due(self, metrics: dict[str, float] | None = None) -> bool:
+        """Whether a periodic evaluation follows this iteration (``metrics``: its training statistics)."""
         schedule = self.cfg.eval
+        if schedule.min_train_success and not self._could_stop(metrics or {}):
+            return False  # the schedule resumes from here: no evaluation is owed for the skipped ones
         if schedule.interval_seconds:
             if self.counters.wall_time < self.counters.next_evaluation_time:
                 return False
@@ -312,6 +315,12 @@ class Trainer:
                 self.counters.next_evaluation_time += schedule.interval_seconds
             return True
         return bool(schedule.interval) and self.counters.iteration % schedule.interval == 0
+
+    def _could_stop(self, metrics: dict[str, float]) -> bool:
+        """``eval.min_train_success``: training on the full start box at that success or above."""
+        success = metrics.get("train/success_rate")
+        return (self.counters.curriculum_scale >= 1.0 and success is not None
+                and success >= self.cfg.eval.min_train_success)
 
     def evaluate(self, episodes: int | None = None, record_trajectories: bool = False) -> tuple[dict[str, Any], Any]:
         env = self.eval_env
@@ -379,7 +388,7 @@ class Trainer:
                 if self.reuse is not None:  # only reuse has relabelled rows: no full-buffer read otherwise
                     metrics.update(self.reuse.last_statistics(), **{"time/reuse_seconds": relabel_time},
                                    **clip_fraction_by_source(self.actor, self.buffer[:], cfg.ppo.clip_epsilon))
-                if self._evaluation_due():
+                if self._evaluation_due(metrics):
                     metrics.update(self._periodic_evaluation())
                 self._snapshot = self._state()
                 self._log(metrics)

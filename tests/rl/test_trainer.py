@@ -152,6 +152,19 @@ def test_iteration_evaluation_schedule(tmp_path, compose_train, tiny_args):
     trainer.collector.shutdown()
 
 
+def test_evaluations_wait_for_training_success_on_the_full_box(tmp_path, compose_train, tiny_args):
+    """``eval.min_train_success``: no periodic evaluation before the curriculum's full box and that training success;
+    the schedule (every 2 iterations here) applies from then on."""
+    config = compose_train(*tiny_args({"eval.interval": 2, "eval.min_train_success": 0.9, "curriculum.enabled": True}))
+    trainer = Trainer(config, tmp_path / "run")
+    due = []
+    for iteration, scale, success in ((2, 0.5, 1.0), (4, 1.0, 0.85), (5, 1.0, 0.95), (6, 1.0, 0.9), (8, 1.0, None)):
+        trainer.counters.iteration, trainer.counters.curriculum_scale = iteration, scale
+        due.append(trainer._evaluation_due({} if success is None else {"train/success_rate": success}))
+    assert due == [False, False, False, True, False]
+    trainer.collector.shutdown()
+
+
 def test_threads_setting_reaches_torch(tmp_path, compose_train, tiny_args):
     torch.set_num_threads(2)  # the fixture restores the previous count afterwards
     trainer = Trainer(compose_train(*tiny_args({"threads": 1})), tmp_path / "run")
