@@ -98,6 +98,18 @@ def test_switch_finetune_experiment_is_stage_two_of_the_baseline():
     assert params.reward.switch_cost == cfg.reward.switch_cost
 
 
+def test_fast_experiment_changes_only_the_measured_settings():
+    """``+experiment=fast`` trains the fixed baseline's task and reward with a narrower network, a larger learning
+    rate, the compiled loss and a cheaper, stricter stop; everything else stays the defaults."""
+    fast, default = dict(_leaves(load("+experiment=fast"))), dict(_leaves(load()))
+    changed = {key for key, value in fast.items() if default[key] != value}
+    assert changed == {"agent.actor_hidden", "agent.critic_hidden", "ppo.learning_rate", "ppo.compile_loss",
+                       "target_success", "eval.interval", "eval.periodic_episodes", "eval.trajectory_image",
+                       "eval.min_train_success"}
+    assert fast["target_success"] > default["target_success"]
+    assert fast["eval.min_train_success"] < fast["target_success"]  # evaluations start before the stop can fire
+
+
 def test_unknown_task_names_the_value():
     with pytest.raises(MissingConfigException) as info:
         load("task=bogus")
