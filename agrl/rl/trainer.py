@@ -317,7 +317,8 @@ class Trainer:
         return bool(schedule.interval) and self.counters.iteration % schedule.interval == 0
 
     def _could_stop(self, metrics: dict[str, float]) -> bool:
-        """``eval.min_train_success``: training on the full start box at that success or above."""
+        """``eval.min_train_success``: the curriculum has reached the full start box and this iteration's training
+        success is at that value or above (the iteration that reaches the full box counts with its own success)."""
         success = metrics.get("train/success_rate")
         return (self.counters.curriculum_scale >= 1.0 and success is not None
                 and success >= self.cfg.eval.min_train_success)
