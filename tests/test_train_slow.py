@@ -48,3 +48,19 @@ def test_methods_from_the_shipped_baseline_learn_uniform_20(tmp_path, run_cli, m
     )
     assert evaluation["task"] == "uniform" and evaluation["method"] == method
     assert evaluation["success_rate"] >= 0.95, evaluation
+
+
+def test_fast_recipe_reaches_its_target_on_fresh_episodes(tmp_path, run_cli):
+    """``python -m agrl.train +experiment=fast``, seed 0, at most 60 iterations (the measured runs took 30-34):
+    it stops at its target, and its agent succeeds on >= 99.5 % of 10 000 episodes from seed 777, which neither
+    trained it nor chose when it stopped (docs/results/ppo_geometry.md, "A faster recipe")."""
+    run = tmp_path / "run"
+    evaluation = train_and_read_evaluation(run_cli, run, "+experiment=fast", "seed=0",
+                                           f"ppo.total_frames={60 * ITERATION}", timeout_minutes=30)
+    assert evaluation["iterations"] < 60, evaluation  # stopped by target_success, not by the budget
+    assert evaluation["success_rate"] >= 0.998, evaluation  # the stop's own episode set (eval.periodic_episodes)
+    result = run_cli("evaluate", f"checkpoint={run}", "episodes=10000", "seed=777", "trajectories=0",
+                     f"output_dir={tmp_path / 'fresh'}", f"hydra.run.dir={tmp_path / 'fresh'}", timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    fresh = json.loads((tmp_path / "fresh" / "eval.json").read_text())
+    assert fresh["episodes"] == 10_000 and fresh["success_rate"] >= 0.995, fresh
