@@ -27,7 +27,7 @@ test: install
 wheel-check:
 	PYTHON=$(PYTHON) bash .ci/wheel-check
 
-# The slow suite: three real training runs with budgets in decisions (docs/training.md, "The slow suite").
+# The slow suite: four real training runs with budgets in decisions (docs/training.md, "The slow suite").
 test-slow: install
 	$(PY) -m pytest -m slow
 

@@ -63,4 +63,5 @@ def test_fast_recipe_reaches_its_target_on_fresh_episodes(tmp_path, run_cli):
                      f"output_dir={tmp_path / 'fresh'}", f"hydra.run.dir={tmp_path / 'fresh'}", timeout=600)
     assert result.returncode == 0, result.stderr[-3000:]
     fresh = json.loads((tmp_path / "fresh" / "eval.json").read_text())
+    print({"fresh_success_rate": fresh["success_rate"], "fresh_instructions": fresh["instructions_per_episode"]})
     assert fresh["episodes"] == 10_000 and fresh["success_rate"] >= 0.995, fresh
