@@ -164,7 +164,7 @@ def race_agrl(args, evaluation: RaceEvaluation, clock: TrainingClock) -> dict:
     class RaceTrainer(Trainer):
         next_evaluation = 0.0
 
-        def _evaluation_due(self, metrics: dict[str, float] | None = None) -> bool:
+        def _evaluation_due(self, metrics: dict[str, float]) -> bool:
             if clock.seconds < self.next_evaluation or clock.seconds >= args.budget_seconds:
                 return False  # (at the end of the budget the final evaluation follows)
             self.next_evaluation = clock.seconds + args.eval_every

@@ -303,10 +303,10 @@ class Trainer:
             return None
         return self.cfg.ppo.epochs * math.ceil(self.frames_per_batch / self.cfg.ppo.minibatch_size)
 
-    def _evaluation_due(self, metrics: dict[str, float] | None = None) -> bool:
+    def _evaluation_due(self, metrics: dict[str, float]) -> bool:
         """Whether a periodic evaluation follows this iteration (``metrics``: its training statistics)."""
         schedule = self.cfg.eval
-        if schedule.min_train_success and not self._could_stop(metrics or {}):
+        if schedule.min_train_success and not self._could_stop(metrics):
             return False  # the schedule resumes from here: no evaluation is owed for the skipped ones
         if schedule.interval_seconds:
             if self.counters.wall_time < self.counters.next_evaluation_time:

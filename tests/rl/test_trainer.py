@@ -135,7 +135,7 @@ def test_wall_clock_evaluation_schedule(tmp_path, compose_train, tiny_args):
     due = []
     for wall_time in (0.0, 4.0, 9.9, 10.0, 12.0, 35.0, 39.0, 40.0):
         trainer.counters.wall_time = wall_time
-        due.append(trainer._evaluation_due())
+        due.append(trainer._evaluation_due({}))
     # Every 10 s of training (eval.interval is then ignored); a long iteration skips the missed slots.
     assert due == [True, False, False, True, False, True, False, True]
     assert trainer.counters.next_evaluation_time == 50.0
@@ -147,7 +147,7 @@ def test_iteration_evaluation_schedule(tmp_path, compose_train, tiny_args):
     due = []
     for iteration in range(1, 8):
         trainer.counters.iteration = iteration
-        due.append(trainer._evaluation_due())
+        due.append(trainer._evaluation_due({}))
     assert due == [False, False, True, False, False, True, False]
     trainer.collector.shutdown()
 
@@ -162,6 +162,20 @@ def test_evaluations_wait_for_training_success_on_the_full_box(tmp_path, compose
         trainer.counters.iteration, trainer.counters.curriculum_scale = iteration, scale
         due.append(trainer._evaluation_due({} if success is None else {"train/success_rate": success}))
     assert due == [False, False, False, True, False]
+    trainer.collector.shutdown()
+
+
+def test_wall_clock_evaluations_wait_too_and_owe_nothing_for_the_skipped_slots(tmp_path, compose_train, tiny_args):
+    """With ``eval.interval_seconds``, the evaluations skipped while waiting are not made up afterwards: one
+    evaluation when the wait ends, then the next 10-s slot."""
+    config = compose_train(*tiny_args({"eval.interval_seconds": 10, "eval.min_train_success": 0.9}))
+    trainer = Trainer(config, tmp_path / "run")
+    due = []
+    for wall_time, success in ((0.0, 0.5), (12.0, 0.5), (35.0, 0.95), (36.0, 0.95), (39.0, 0.95), (40.0, 0.95)):
+        trainer.counters.wall_time = wall_time
+        due.append(trainer._evaluation_due({"train/success_rate": success}))
+    assert due == [False, False, True, False, False, True]
+    assert trainer.counters.next_evaluation_time == 50.0
     trainer.collector.shutdown()
 
 
