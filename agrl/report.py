@@ -1,6 +1,7 @@
 """``python -m agrl.report``: turn finished runs into the paper's tables and figures.
 
     python -m agrl.report table3 runs/table3 > table3.md              # the tables go to standard output
+    python -m agrl.report table3 runs/table3 --independent eval_777   # + each run's <run>/eval_777/eval.json
     python -m agrl.report moving runs/moving --figures docs/results/figures
     python -m agrl.report runs runs/moving --times 60 120 180 240       # one line per run: its curve and costs
 
@@ -135,31 +136,59 @@ def _reached(runs: list[dict], threshold: float) -> tuple[list, list, int]:
     return iterations, minutes, sum(hit is not None for hit in hits)
 
 
-def table3(runs: list[dict[str, Any]]) -> str:
+def reward_label(config: dict) -> str:
+    """A run's Table 3 row: the reward variant, and for ``switch`` (not in the paper) its cost per instruction."""
+    reward = config["reward"]
+    if reward["name"] == "switch":
+        return f"switch (k = {float(reward.get('switch_cost', 0.0)):g})"
+    return reward["name"]
+
+
+def independent_evaluation(run: dict, folder: str) -> dict | None:
+    """The ``eval.json`` that ``python -m agrl.evaluate`` wrote to ``<run>/<folder>`` (episodes no training or
+    stop of the run used), or None."""
+    path = Path(run["dir"]) / folder / "eval.json"
+    return json.loads(path.read_text()) if path.is_file() else None
+
+
+def table3(runs: list[dict[str, Any]], independent: tuple[str, ...] = ()) -> str:
+    """The paper's Table 3 (mean ± standard deviation over seeds), one row per reward variant: the paper's four in
+    its order, then ``switch`` rows by cost. ``independent`` names evaluation folders inside each run (see
+    :func:`independent_evaluation`); each adds a column of success and instructions on those episodes."""
     groups: dict[str, list] = defaultdict(list)
     for run in runs:
-        groups[run["config"]["reward"]["name"]].append(run)
+        groups[reward_label(run["config"])].append(run)
+    extra = "".join(f" {folder}: success, instructions |" for folder in independent)
     lines = [
         "| Reward | Seeds | Success rate | Instructions / episode | ms / instruction | Iterations to 95 % eval | "
-        "Minutes to 95 % eval | Iterations to 99 % eval | Minutes to 99 % eval | Paper: success, instructions, ms |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "Minutes to 95 % eval | Iterations to 99 % eval | Minutes to 99 % eval |" + extra
+        + " Paper: success, instructions, ms |",
+        "|---|---|---|---|---|---|---|---|---|" + "---|" * len(independent) + "---|",
     ]
-    for name in ("none", "continuous", "position", "both"):
-        group = groups.get(name, [])
-        if not group:
-            continue
+    switch_rows = sorted((label for label in groups if label.startswith("switch")),
+                         key=lambda label: float(label.split("= ")[1].rstrip(")")))
+    for name in (*[name for name in PAPER_TABLE3 if name in groups], *switch_rows):
+        group = groups[name]
         success = [run["eval"]["success_rate"] * 100 for run in group]
         instructions = [run["eval"]["instructions_per_episode"] for run in group]
         latency = [run["eval"]["ms_per_instruction"] for run in group]
         it95, min95, n95 = _reached(group, 0.95)
         it99, min99, n99 = _reached(group, 0.99)
-        paper = PAPER_TABLE3[name]
+        cells = []
+        for folder in independent:
+            found = [evaluation for run in group if (evaluation := independent_evaluation(run, folder))]
+            cells.append(
+                f"{_mean_std([e['success_rate'] * 100 for e in found], '.2f')} %, "
+                f"{_mean_std([e['instructions_per_episode'] for e in found], '.2f')} ({len(found)}/{len(group)})"
+                if found else "-")
+        paper = PAPER_TABLE3.get(name)
         lines.append(
             f"| {name} | {len(group)} | {_mean_std(success, '.1f')} % | {_mean_std(instructions, '.2f')} | "
             f"{_mean_std(latency, '.2f')} | {_mean_std(it95, '.0f')} ({n95}/{len(group)}) | "
             f"{_mean_std(min95, '.1f')} | "
             f"{_mean_std(it99, '.0f')} ({n99}/{len(group)}) | {_mean_std(min99, '.1f')} | "
-            f"{paper[0] * 100:.1f} %, {paper[1]}, {paper[2]} ms |"
+            + "".join(f"{cell} | " for cell in cells)
+            + (f"{paper[0] * 100:.1f} %, {paper[1]}, {paper[2]} ms |" if paper else "not in the paper |")
         )
     return "\n".join(lines)
 
@@ -332,13 +361,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--figure-suffix", default="", help="appended to figure names, e.g. _8min (moving)")
     parser.add_argument("--times", type=float, nargs="+", default=[60, 120, 180],
                         help="training seconds at which to give each run's best evaluation so far (runs)")
+    parser.add_argument("--independent", nargs="+", default=[], metavar="FOLDER",
+                        help="evaluation folders inside each run (python -m agrl.evaluate ... hydra.run.dir=<run>/"
+                             "FOLDER), one column each of success and instructions (table3)")
     args = parser.parse_args(argv)
     runs = find_runs(args.root)
     if not runs:
         print(f"agrl.report: error: no finished runs (eval/eval.json) below {args.root}", file=sys.stderr)
         return 2
     if args.kind == "table3":
-        print(table3(runs))
+        print(table3(runs, tuple(args.independent)))
     elif args.kind == "moving":
         print(moving_tables(runs, args.figures, args.figure_suffix))
     else:

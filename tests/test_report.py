@@ -95,14 +95,17 @@ def test_the_final_evaluation_is_the_last_point_when_no_periodic_one_got_there(t
 
 
 # ---------------------------------------------------------------------------- Table 3
-def make_reward_run(root: Path, name: str, reward: str, evaluation: dict, curve: list[tuple[float, float]]) -> None:
+def make_reward_run(root: Path, name: str, reward: str, evaluation: dict, curve: list[tuple[float, float]],
+                    switch_cost: float | None = None) -> Path:
     """A finished fixed-task run of one reward setting: eval.json as the trainer writes it, TensorBoard scalars
     of (wall seconds, periodic evaluation success)."""
-    config = {"task": {"name": "fixed"}, "reward": {"name": reward}, "method": {"name": "scratch"}, "seed": 0}
+    reward_config = {"name": reward} if switch_cost is None else {"name": reward, "switch_cost": switch_cost}
+    config = {"task": {"name": "fixed"}, "reward": reward_config, "method": {"name": "scratch"}, "seed": 0}
     run = write_run(root, name, config, evaluation)
     write_scalars(run, [{"frames": i * 100, "train/iteration": i, "time/wall_time": seconds,
                          "eval/success_rate": success, "train/success_rate": success}
                         for i, (seconds, success) in enumerate(curve)])
+    return run
 
 
 def test_table3_rows_are_mean_and_spread_over_seeds_beside_the_paper(tmp_path, capsys):
@@ -125,6 +128,33 @@ def test_table3_rows_are_mean_and_spread_over_seeds_beside_the_paper(tmp_path, c
                             "2 (1/2)", "2.0", "99.5 %, 7.22, 2.91 ms"]
     assert rows["none"] == ["none", "1", "50.0 %", "11.00", "0.25", "not reached (0/1)", "not reached",
                             "not reached (0/1)", "not reached", "98.6 %, 11.31, 2.98 ms"]
+
+
+def test_table3_gives_each_switch_cost_its_row_and_independent_evaluations_their_column(tmp_path, capsys):
+    def evaluation(success, instructions):
+        return {"success_rate": success, "instructions_per_episode": instructions, "ms_per_instruction": 0.3}
+
+    curve = [(0, 0.1), (60, 0.999)]
+    runs = [make_reward_run(tmp_path, "k03_s0", "switch", evaluation(0.99, 7.0), curve, switch_cost=0.3),
+            make_reward_run(tmp_path, "k03_s1", "switch", evaluation(0.99, 8.0), curve, switch_cost=0.3),
+            make_reward_run(tmp_path, "k01_s0", "switch", evaluation(0.99, 10.0), curve, switch_cost=0.1),
+            make_reward_run(tmp_path, "both_s0", "both", evaluation(0.99, 19.0), curve)]
+    # 10 000 independent episodes, as `python -m agrl.evaluate ... hydra.run.dir=<run>/eval_777` leaves them;
+    # the second k = 0.3 seed has none: the cell says over how many runs it is.
+    for run, success, instructions in zip(runs, (0.996, None, 0.998, 0.997), (6.5, None, 9.5, 18.5), strict=True):
+        if success is not None:
+            (run / "eval_777").mkdir()
+            (run / "eval_777" / "eval.json").write_text(json.dumps(evaluation(success, instructions)))
+    assert main(["table3", str(tmp_path), "--independent", "eval_777"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].endswith("| eval_777: success, instructions | Paper: success, instructions, ms |")
+    assert lines[1].count("|") == lines[0].count("|")
+    rows = {line.split(" | ")[0].lstrip("| "): line.strip("| ").split(" | ") for line in lines[2:]}
+    assert list(rows) == ["both", "switch (k = 0.1)", "switch (k = 0.3)"]  # the paper's rows, then by cost
+    assert rows["switch (k = 0.3)"][3] == "7.50 ± 0.71"
+    assert rows["switch (k = 0.3)"][-2:] == ["99.60 %, 6.50 (1/2)", "not in the paper"]
+    assert rows["switch (k = 0.1)"][-2:] == ["99.80 %, 9.50 (1/1)", "not in the paper"]
+    assert rows["both"][-2:] == ["99.70 %, 18.50 (1/1)", "99.5 %, 7.22, 2.91 ms"]
 
 
 def test_metrics_rows_come_back_from_tensorboard_one_per_step(tmp_path):
