@@ -137,11 +137,15 @@ def _reached(runs: list[dict], threshold: float) -> tuple[list, list, int]:
 
 
 def reward_label(config: dict) -> str:
-    """A run's Table 3 row: the reward variant, and for ``switch`` (not in the paper) its cost per instruction."""
+    """A run's Table 3 row: the reward variant; for ``switch`` (not in the paper) its cost per instruction, and
+    which shaping term it goes without if one is switched off."""
     reward = config["reward"]
-    if reward["name"] == "switch":
-        return f"switch (k = {float(reward.get('switch_cost', 0.0)):g})"
-    return reward["name"]
+    if reward["name"] != "switch":
+        return reward["name"]
+    dropped = [term for term, key in (("continuous-action", "use_continuous_action"), ("position", "use_position"))
+               if not reward.get(key, True)]
+    without = "".join(f", no {term} term" for term in dropped)
+    return f"switch (k = {float(reward.get('switch_cost', 0.0)):g}{without})"
 
 
 def independent_evaluation(run: dict, folder: str) -> dict | None:
@@ -156,8 +160,12 @@ def table3(runs: list[dict[str, Any]], independent: tuple[str, ...] = ()) -> str
     its order, then ``switch`` rows by cost. ``independent`` names evaluation folders inside each run (see
     :func:`independent_evaluation`); each adds a column of success and instructions on those episodes."""
     groups: dict[str, list] = defaultdict(list)
+    switch_costs: dict[str, float] = {}  # the switch rows' order
     for run in runs:
-        groups[reward_label(run["config"])].append(run)
+        label = reward_label(run["config"])
+        groups[label].append(run)
+        if run["config"]["reward"]["name"] == "switch":
+            switch_costs[label] = float(run["config"]["reward"].get("switch_cost", 0.0))
     extra = "".join(f" {folder}: success, instructions |" for folder in independent)
     lines = [
         "| Reward | Seeds | Success rate | Instructions / episode | ms / instruction | Iterations to 95 % eval | "
@@ -165,8 +173,7 @@ def table3(runs: list[dict[str, Any]], independent: tuple[str, ...] = ()) -> str
         + " Paper: success, instructions, ms |",
         "|---|---|---|---|---|---|---|---|---|" + "---|" * len(independent) + "---|",
     ]
-    switch_rows = sorted((label for label in groups if label.startswith("switch")),
-                         key=lambda label: float(label.split("= ")[1].rstrip(")")))
+    switch_rows = sorted(switch_costs, key=lambda label: (switch_costs[label], label))
     for name in (*[name for name in PAPER_TABLE3 if name in groups], *switch_rows):
         group = groups[name]
         success = [run["eval"]["success_rate"] * 100 for run in group]

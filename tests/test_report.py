@@ -96,10 +96,10 @@ def test_the_final_evaluation_is_the_last_point_when_no_periodic_one_got_there(t
 
 # ---------------------------------------------------------------------------- Table 3
 def make_reward_run(root: Path, name: str, reward: str, evaluation: dict, curve: list[tuple[float, float]],
-                    switch_cost: float | None = None) -> Path:
-    """A finished fixed-task run of one reward setting: eval.json as the trainer writes it, TensorBoard scalars
-    of (wall seconds, periodic evaluation success)."""
-    reward_config = {"name": reward} if switch_cost is None else {"name": reward, "switch_cost": switch_cost}
+                    **reward_values) -> Path:
+    """A finished fixed-task run of one reward setting (``reward_values``: its other reward fields): eval.json as
+    the trainer writes it, TensorBoard scalars of (wall seconds, periodic evaluation success)."""
+    reward_config = {"name": reward, **reward_values}
     config = {"task": {"name": "fixed"}, "reward": reward_config, "method": {"name": "scratch"}, "seed": 0}
     run = write_run(root, name, config, evaluation)
     write_scalars(run, [{"frames": i * 100, "train/iteration": i, "time/wall_time": seconds,
@@ -139,6 +139,9 @@ def test_table3_gives_each_switch_cost_its_row_and_independent_evaluations_their
             make_reward_run(tmp_path, "k03_s1", "switch", evaluation(0.99, 8.0), curve, switch_cost=0.3),
             make_reward_run(tmp_path, "k01_s0", "switch", evaluation(0.99, 10.0), curve, switch_cost=0.1),
             make_reward_run(tmp_path, "both_s0", "both", evaluation(0.99, 19.0), curve)]
+    # A switch cost on the position term alone is a row of its own.
+    make_reward_run(tmp_path, "k01_position_s0", "switch", evaluation(0.995, 9.0), curve,
+                    switch_cost=0.1, use_continuous_action=False)
     # 10 000 independent episodes, as `python -m agrl.evaluate ... hydra.run.dir=<run>/eval_777` leaves them;
     # the second k = 0.3 seed has none: the cell says over how many runs it is.
     for run, success, instructions in zip(runs, (0.996, None, 0.998, 0.997), (6.5, None, 9.5, 18.5), strict=True):
@@ -150,7 +153,10 @@ def test_table3_gives_each_switch_cost_its_row_and_independent_evaluations_their
     assert lines[0].endswith("| eval_777: success, instructions | Paper: success, instructions, ms |")
     assert lines[1].count("|") == lines[0].count("|")
     rows = {line.split(" | ")[0].lstrip("| "): line.strip("| ").split(" | ") for line in lines[2:]}
-    assert list(rows) == ["both", "switch (k = 0.1)", "switch (k = 0.3)"]  # the paper's rows, then by cost
+    assert list(rows) == ["both", "switch (k = 0.1)", "switch (k = 0.1, no continuous-action term)",
+                          "switch (k = 0.3)"]  # the paper's rows, then by cost
+    assert rows["switch (k = 0.1, no continuous-action term)"][2:4] == ["99.5 %", "9.00"]
+    assert rows["switch (k = 0.1, no continuous-action term)"][-2] == "-"  # no independent evaluation
     assert rows["switch (k = 0.3)"][3] == "7.50 ± 0.71"
     assert rows["switch (k = 0.3)"][-2:] == ["99.60 %, 6.50 (1/2)", "not in the paper"]
     assert rows["switch (k = 0.1)"][-2:] == ["99.80 %, 9.50 (1/1)", "not in the paper"]
