@@ -80,9 +80,13 @@ def test_switch_cost_is_off_in_the_papers_variants_and_reaches_the_env():
     for name in ("none", "continuous", "position", "both"):
         cfg = load(f"reward={name}")
         assert to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, compile=False).reward.switch_cost == 0.0
+    # reward=switch: the position term and the cost (the continuous-action term off); the earlier form on request.
     cfg = load("reward=switch", "reward.switch_cost=0.7")
     params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, compile=False).reward
-    assert (params.switch_cost, params.use_continuous_action, params.use_position) == (0.7, True, True)
+    assert (params.switch_cost, params.use_continuous_action, params.use_position) == (0.7, False, True)
+    cfg = load("reward=switch", "reward.use_continuous_action=true")
+    params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, compile=False).reward
+    assert (params.switch_cost, params.use_continuous_action, params.use_position) == (0.1, True, True)
 
 
 def test_switch_finetune_experiment_is_stage_two_of_the_baseline():
@@ -99,13 +103,15 @@ def test_switch_finetune_experiment_is_stage_two_of_the_baseline():
 
 
 def test_fast_experiment_changes_only_the_measured_settings():
-    """``+experiment=fast`` trains the fixed baseline's task and reward with a narrower network, a larger learning
-    rate, the compiled loss and a cheaper, stricter stop; everything else stays the defaults."""
+    """``+experiment=fast`` trains the fixed baseline's task and reward (with both shaping terms, as it was measured)
+    with a narrower network, a larger learning rate, the compiled loss and a cheaper, stricter stop; everything else
+    stays the defaults."""
     fast, default = dict(_leaves(load("+experiment=fast"))), dict(_leaves(load()))
     changed = {key for key, value in fast.items() if default[key] != value}
     assert changed == {"agent.actor_hidden", "agent.critic_hidden", "ppo.learning_rate", "ppo.compile_loss",
                        "target_success", "eval.interval", "eval.periodic_episodes", "eval.trajectory_image",
-                       "eval.min_train_success"}
+                       "eval.min_train_success", "reward.use_continuous_action"}
+    assert fast["reward.use_continuous_action"] and not default["reward.use_continuous_action"]
     assert fast["target_success"] > default["target_success"]
     assert fast["eval.min_train_success"] < fast["target_success"]  # evaluations start before the stop can fire
 
