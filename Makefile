@@ -57,7 +57,8 @@ experiments-moving: install
 
 experiments-table3: install
 	$(PY) -m agrl.train -m $(SWEEP) reward=none,continuous,position,both seed=0,1,2 ppo.max_minutes=5 progress=false hydra.sweep.dir=runs/table3
-	$(PY) -m agrl.train -m $(SWEEP) reward=switch reward.switch_cost=0.1,0.3 seed=0,1,2 ppo.max_minutes=5 progress=false hydra.sweep.dir=runs/table3
+	$(PY) -m agrl.train -m $(SWEEP) reward=switch reward.use_continuous_action=true reward.switch_cost=0.1,0.3 seed=0,1,2 ppo.max_minutes=5 progress=false hydra.sweep.dir=runs/table3
+	$(PY) -m agrl.train -m $(SWEEP) reward=switch seed=0,1,2 ppo.max_minutes=5 progress=false hydra.sweep.dir=runs/table3
 
 report: install
 	$(PY) -m agrl.report table3 runs/table3
