@@ -2,7 +2,7 @@
 
 Examples::
 
-    python -m agrl.train                                   # fixed destination, PPO with both shaping terms
+    python -m agrl.train                                   # fixed destination, position shaping + switch cost
     python -m agrl.train task=uniform speed=50 method=reuse
     python -m agrl.train reward=none seed=2 ppo.max_minutes=10
     python -m agrl.train resume=runs/fixed/scratch/<date>_seed0 ppo.total_frames=20000000

@@ -91,15 +91,22 @@ def test_switch_cost_is_off_in_the_papers_variants_and_reaches_the_env():
 
 def test_switch_finetune_experiment_is_stage_two_of_the_baseline():
     """``+experiment=switch_finetune`` (the shipped baseline's stage 2) fine-tunes a fixed-destination agent at a
-    larger switch cost for a fixed frame budget."""
+    larger switch cost, with stage 1's reward otherwise, for a fixed frame budget."""
     cfg = load("+experiment=switch_finetune", "method.baseline=somewhere")
     stage_one = load()
     assert (cfg.task.name, cfg.method.name, cfg.method.baseline) == ("fixed", "pretrained", "somewhere")
     assert cfg.reward.switch_cost > stage_one.reward.switch_cost
+    assert cfg.reward.use_continuous_action == stage_one.reward.use_continuous_action
     assert cfg.target_success == 0 and cfg.ppo.max_minutes == 0
     assert cfg.ppo.total_frames % (cfg.ppo.num_envs * cfg.ppo.steps_per_env) == 0
     params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, compile=False)
     assert params.reward.switch_cost == cfg.reward.switch_cost
+
+
+def test_switch_finetune_needs_the_stage_one_agent_named():
+    """The shipped baseline is already stage 2's output, so the experiment does not default to it."""
+    with pytest.raises(ConfigError, match="method.baseline=None"):
+        load("+experiment=switch_finetune")
 
 
 def test_fast_experiment_changes_only_the_measured_settings():
