@@ -73,9 +73,10 @@ def test_a_worker_run_learns(tmp_path, run_cli):
     episodes succeed more often after training than before. Seeded workers make the run reproducible (2026-12-02,
     seed 0: 22.7 % -> 56.6 %, 6.5 minutes on a loaded 2-core machine; before the workers were seeded, runs of the
     same code differed, one of them 22.7 % -> 34.4 %). It starts from the baseline of 2026-12-01 (kept in
-    docs/results/), for which these 10 iterations were sized: today's shipped baseline stays near its 20 % for its
-    first 30 s at 100 m/s (docs/results/moving.md, 2026-12-03 morning), and went 19.9 % -> 31.3 % here; from the
-    2026-12-01 one, 22.7 % -> 48.0 % on 2026-12-03."""
+    docs/results/), for which these 10 iterations were sized: from the stage-1 baseline of 2026-12-03, pre-training
+    at 100 m/s spends 0-5 more iterations running out of decisions before success rises (docs/results/moving.md,
+    "Why the new baseline looks slow at first"), and went 19.9 % -> 31.3 % here; from the 2026-12-01 one,
+    22.7 % -> 48.0 % on 2026-12-03."""
     run_dir = tmp_path / "run"
     baseline = Path(__file__).parents[2] / "docs" / "results" / "baseline_2026-12-01" / "fixed_baseline.pt"
     result = run_cli("train", "task=uniform", "speed=100", "method=pretrained", f"method.baseline={baseline}",
