@@ -443,7 +443,7 @@ def validated_section(schema, values: dict) -> Any:
 
 def saved_agent_config(saved: dict) -> AgentConfig:
     """A checkpoint's saved ``agent`` section, validated. Checkpoints written before ``agent.observation``
-    existed (the shipped baseline among them) have no entry: their agents read the relative observation."""
+    existed (the 2026-12-01 baseline among them) have no entry: their agents read the relative observation."""
     return validated_section(AgentConfig, {"observation": LEGACY_OBSERVATION, **saved["agent"]})
 
 
