@@ -48,7 +48,8 @@ bench: install
 lint: install
 	$(PY) -m ruff check agrl tests
 
-# The reproductions summarised in docs/results/ (hours of CPU; see those pages for the budgets used).
+# The reproductions summarised in docs/results/ (hours of CPU; see those pages for the budgets used). Table 3's eighth
+# row (runs/table3_stage2) fine-tunes the stage-1 agent kept in docs/results/baseline_2026-12-03/.
 # LAUNCHER picks Hydra's launcher: empty = one run at a time in this process (what the wall-time figures need),
 # joblib = several local processes (hydra.launcher.n_jobs), submitit_slurm = Slurm jobs (see docs/training.md).
 # Extra overrides in ARGS, e.g. make experiments-moving LAUNCHER=submitit_slurm ARGS="hydra.launcher.partition=cpu"
@@ -68,9 +69,11 @@ experiments-table3: install
 	$(PY) -m agrl.train -m $(SWEEP) reward=none,continuous,position,both seed=0,1,2 ppo.max_minutes=5 progress=false hydra.sweep.dir=runs/table3
 	$(PY) -m agrl.train -m $(SWEEP) reward=switch reward.use_continuous_action=true reward.switch_cost=0.1,0.3 seed=0,1,2 ppo.max_minutes=5 progress=false hydra.sweep.dir=runs/table3
 	$(PY) -m agrl.train -m $(SWEEP) reward=switch seed=0,1,2 ppo.max_minutes=5 progress=false hydra.sweep.dir=runs/table3
+	$(PY) -m agrl.train -m $(SWEEP) +experiment=switch_finetune method.baseline=docs/results/baseline_2026-12-03/fixed_baseline.pt seed=0,1,2 threads=1 progress=false hydra.sweep.dir=runs/table3_stage2
 
 report: install
 	$(PY) -m agrl.report table3 runs/table3
+	$(PY) -m agrl.report table3 runs/table3_stage2
 	$(PY) -m agrl.report moving runs/moving --figures docs/results/figures
 	$(PY) -m agrl.report moving runs/moving_long --figures docs/results/figures --figure-suffix _8min
 
