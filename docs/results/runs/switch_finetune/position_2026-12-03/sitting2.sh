@@ -13,7 +13,11 @@ echo "$(date -u +%FT%H:%M:%S) sitting starts at commit $(git rev-parse --short H
 train() {  # name seed extra-overrides...
   local name=$1 seed=$2; shift 2
   echo "$(date -u +%H:%M:%S) start $name load $(cut -d' ' -f1-3 /proc/loadavg)" >> $log
+  # Edited after the sitting so that it reruns today (conf/experiment/switch_finetune.yaml changed with its results):
+  # the stage-1 agent is named (it was the shipped file then) and the experiment of then is spelled out.
   .venv/bin/python -m agrl.train +experiment=switch_finetune reward.use_continuous_action=false \
+    method.baseline=docs/results/baseline_2026-12-03/fixed_baseline.pt \
+    ppo.minibatch_size=512 ppo.learning_rate=5e-4 ppo.total_frames=1310720 \
     ppo.minibatch_size=4096 ppo.learning_rate=1e-3 seed=$seed threads=1 progress=false "$@" \
     hydra.run.dir=$out/$name > /dev/null 2>&1 || echo "FAILED $name" >> $log
   echo "$(date -u +%H:%M:%S) done  $name: $(tail -n 1 $out/$name/train.log | cut -c1-160)" >> $log
