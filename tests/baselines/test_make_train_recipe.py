@@ -13,6 +13,7 @@ from pathlib import Path
 import torch
 
 from agrl.baselines import BASELINE_FILE
+from agrl.rl.metrics import flatten_config
 
 ROOT = Path(__file__).resolve().parents[2]
 STAGE_ONE_FILE = ROOT / "docs" / "results" / "baseline_2026-12-03" / "fixed_baseline.pt"
@@ -20,23 +21,13 @@ STAGE_ONE_FILE = ROOT / "docs" / "results" / "baseline_2026-12-03" / "fixed_base
 NOT_THE_RECIPE = {"progress", "method.baseline"}
 
 
-def _flat(mapping: dict, prefix: str = "") -> dict:
-    flat = {}
-    for key, value in mapping.items():
-        if isinstance(value, dict):
-            flat.update(_flat(value, f"{prefix}{key}."))
-        else:
-            flat[f"{prefix}{key}"] = value
-    return flat
-
-
-def _recipe(config) -> dict:
-    return {key: value for key, value in _flat(dataclasses.asdict(config)).items() if key not in NOT_THE_RECIPE}
+def _recipe(config: dict) -> dict:
+    """``a.b.c`` keys (as the TensorBoard hparams are written) without the per-invocation ones."""
+    return {key: value for key, value in flatten_config(config).items() if key not in NOT_THE_RECIPE}
 
 
 def _saved(path: Path) -> dict:
-    saved = _flat(torch.load(path, weights_only=True)["config"])
-    return {key: value for key, value in saved.items() if key not in NOT_THE_RECIPE}
+    return _recipe(torch.load(path, weights_only=True)["config"])
 
 
 def _differences(composed: dict, saved: dict) -> dict:
@@ -52,12 +43,12 @@ def _makefile_finetune_args() -> list[str]:
 
 
 def test_stage_one_is_the_defaults(compose_train):
-    assert _differences(_recipe(compose_train()), _saved(STAGE_ONE_FILE)) == {}
+    assert _differences(_recipe(dataclasses.asdict(compose_train())), _saved(STAGE_ONE_FILE)) == {}
 
 
 def test_stage_two_is_the_finetune_experiment_with_the_makefiles_arguments(compose_train):
     config = compose_train("+experiment=switch_finetune", "method.baseline=stage1", *_makefile_finetune_args())
-    assert _differences(_recipe(config), _saved(BASELINE_FILE)) == {}
+    assert _differences(_recipe(dataclasses.asdict(config)), _saved(BASELINE_FILE)) == {}
 
 
 def test_the_shipped_file_was_fine_tuned_from_a_stage_one_run():
