@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 ARGS ?=
 
-.PHONY: install train test test-slow bench lint clean experiments-table3 experiments-moving report wheel-check
+.PHONY: install train train-args test test-slow bench lint clean experiments-table3 experiments-moving report wheel-check
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -24,9 +24,16 @@ install: $(STAMP)
 TRAIN_DIR ?= runs/fixed/baseline/$(NOW)
 NOW := $(shell date +%Y-%m-%d_%H-%M-%S)
 FINETUNE_ARGS ?= seed=1 threads=1
-train: install
+train: train-args install
 	$(PY) -m agrl.train hydra.run.dir=$(TRAIN_DIR)/stage1 $(ARGS)
 	$(PY) -m agrl.train +experiment=switch_finetune method.baseline=$(TRAIN_DIR)/stage1 hydra.run.dir=$(TRAIN_DIR)/stage2 $(FINETUNE_ARGS)
+
+# Stage 2 fine-tunes a fixed-destination agent of the default networks: stop at once if ARGS would give it another.
+train-args:
+	@case " $(ARGS) " in *" task="*|*" method="*|*" +experiment="*|*" agent."*) \
+	  echo "make train: ARGS='$(ARGS)' changes the task, method, experiment or networks, but make train's stage 2 fine-tunes the fixed-destination agent of the default networks; allowed: other overrides (e.g. ARGS='seed=3'); for other tasks and methods run python -m agrl.train (README)" >&2; \
+	  exit 2;; \
+	esac
 
 # The fast default suite (slow-marked tests excluded by pyproject's addopts).
 test: install

@@ -8,8 +8,10 @@ from __future__ import annotations
 import dataclasses
 import re
 import shlex
+import subprocess
 from pathlib import Path
 
+import pytest
 import torch
 
 from agrl.baselines import BASELINE_FILE
@@ -55,3 +57,22 @@ def test_the_shipped_file_was_fine_tuned_from_a_stage_one_run():
     saved = torch.load(BASELINE_FILE, weights_only=True)["config"]
     assert saved["method"]["name"] == "pretrained"
     assert saved["method"]["baseline"].endswith("stage1")
+
+
+def _make_train_args(args: str) -> subprocess.CompletedProcess:
+    """``make train``'s first step alone: the check of ARGS, which runs before anything is installed or trained."""
+    return subprocess.run(["make", "--no-print-directory", "train-args", f"ARGS={args}"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=60)
+
+
+@pytest.mark.parametrize("args", ["task=uniform speed=50", "seed=2 method=reuse", "+experiment=fast",
+                                  "agent.actor_hidden=[64,64]"])
+def test_make_train_refuses_arguments_stage_two_cannot_fine_tune(args):
+    result = _make_train_args(args)
+    assert result.returncode != 0
+    assert f"ARGS='{args}'" in result.stderr and "python -m agrl.train" in result.stderr
+
+
+@pytest.mark.parametrize("args", ["", "seed=3", "seed=3 ppo.learning_rate=1e-3 reward.switch_cost=0.2"])
+def test_make_train_accepts_other_stage_one_overrides(args):
+    assert _make_train_args(args).returncode == 0

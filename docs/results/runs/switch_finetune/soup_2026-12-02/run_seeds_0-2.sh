@@ -1,9 +1,11 @@
 #!/bin/bash
+# Since 2026-12-03 +experiment=switch_finetune is the two-stage recipe's stage 2; the overrides right after it give
+# the experiment as this ran (both shaping terms, minibatch 512, 5e-4, 40 iterations, the 2026-12-01 baseline).
 cd "$(git rev-parse --show-toplevel)"
 out=runs/soup_2026-12-02; mkdir -p $out
 for seed in 0 1 2; do
   echo "$(date -u +%H:%M:%S) start ft_s$seed load $(cut -d' ' -f1 /proc/loadavg)" >> $out/log.txt
-  .venv/bin/python -m agrl.train +experiment=switch_finetune progress=false seed=$seed hydra.run.dir=$out/ft_s$seed > $out/ft_s$seed.train.log 2>&1
+  .venv/bin/python -m agrl.train +experiment=switch_finetune reward.use_continuous_action=true ppo.minibatch_size=512 ppo.learning_rate=5e-4 ppo.total_frames=1310720 method.baseline=docs/results/baseline_2026-12-01/fixed_baseline.pt progress=false seed=$seed hydra.run.dir=$out/ft_s$seed > $out/ft_s$seed.train.log 2>&1
   tail -n 1 $out/ft_s$seed.train.log | cut -c1-400 >> $out/log.txt
 done
 .venv/bin/python -m agrl.export $out/ft_s0 $out/ft_s1 $out/ft_s2 $out/soup.pt >> $out/log.txt 2>&1  # the sitting ran a one-off script with the same mean; its file is bitwise equal to this command's
