@@ -238,6 +238,7 @@ class PPOConfig:
     max_grad_norm: float = MISSING
     anneal_lr: bool = MISSING
     compile_loss: bool = MISSING  # torch.compile the loss's forward and backward (agrl.rl.ppo.CompiledLoss)
+    target_kl: float = MISSING  # stop an update once a minibatch's approximate KL exceeds 1.5 x this; 0 = never
     collector_workers: int = MISSING  # 1 = one Collector in this process; N > 1 = MultiSyncCollector
 
     def __post_init__(self) -> None:
@@ -247,6 +248,7 @@ class PPOConfig:
         _require(0 <= self.gae_lambda <= 1, "ppo.gae_lambda", self.gae_lambda, "[0, 1]")
         _require(self.clip_epsilon > 0, "ppo.clip_epsilon", self.clip_epsilon, "> 0")
         _require(self.max_minutes >= 0, "ppo.max_minutes", self.max_minutes, ">= 0 (0 = no limit)")
+        _require(self.target_kl >= 0, "ppo.target_kl", self.target_kl, ">= 0 (0 = no limit)")
         frames = self.num_envs * self.steps_per_env
         _require(self.minibatch_size <= frames, "ppo.minibatch_size", self.minibatch_size,
                  f"<= num_envs * steps_per_env = {frames}")

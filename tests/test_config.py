@@ -167,6 +167,7 @@ def test_wrong_type_names_the_value():
         (("ppo.minibatch_size=100000000",), "ppo.minibatch_size"),
         (("threads=0",), "threads=0"),
         (("eval.min_train_success=1.5",), "eval.min_train_success"),
+        (("ppo.target_kl=-0.01",), "ppo.target_kl"),
         (("task=irregular", "task.change_probability=2"), "task.change_probability"),
         (("method=pretrained", "method.start_from_baseline=true"), "method.start_from_baseline"),
         (("method.start_from_baseline=true",), "method.start_from_baseline"),

@@ -82,9 +82,12 @@ def ppo_update(
     max_grad_norm: float,
     where: str,
     max_updates: int | None = None,
+    target_kl: float = 0.0,
 ) -> dict[str, float]:
-    """``epochs`` passes over the buffer in minibatches, stopping after ``max_updates`` minibatches if given; the
-    mean of each logged loss term.
+    """``epochs`` passes over the buffer in minibatches, stopping after ``max_updates`` minibatches if given, or
+    before the first minibatch whose approximate KL from the collecting policy exceeds ``1.5 * target_kl`` if
+    ``target_kl`` > 0 (stable-baselines3's rule); the mean of each logged loss term, and ``minibatches``: the
+    optimiser steps taken.
 
     Raises :class:`TrainingDiverged` (naming ``where`` and the update) on a non-finite loss or gradient,
     before the optimiser step, so the parameters stay finite.
@@ -92,11 +95,16 @@ def ppo_update(
     totals: dict[str, float] = {}
     updates = 0
     parameters = list(loss.parameters())  # once: loss.parameters() walks every submodule of actor and critic
+    kl_limit = 1.5 * target_kl if target_kl > 0 else None
+    stop = False
     for _ in range(epochs):
         for batch in buffer:
             if max_updates is not None and updates >= max_updates:
                 break  # the sampler's unfinished pass is dropped by the next update's buffer.empty()
             losses = loss(batch)
+            if kl_limit is not None and float(losses["kl_approx"]) > kl_limit:
+                stop = True  # the policy has moved far enough from the one that collected (or relabelled) the rows
+                break
             total = total_loss(losses)
             if not torch.isfinite(total):
                 raise TrainingDiverged(f"non-finite loss ({total.item()}) {where}, update {updates + 1}")
@@ -110,7 +118,9 @@ def ppo_update(
             for key in LOGGED_LOSS_TERMS:
                 if key in losses.keys():
                     totals[key] = totals.get(key, 0.0) + float(losses[key].detach().float().mean())
-    return {key: value / max(updates, 1) for key, value in totals.items()}
+        if stop:
+            break
+    return {**{key: value / max(updates, 1) for key, value in totals.items()}, "minibatches": float(updates)}
 
 
 def annealed_learning_rate(initial: float, frames: int, total_frames: int) -> float:

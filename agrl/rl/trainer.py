@@ -291,7 +291,8 @@ class Trainer:
         ppo = self.cfg.ppo
         try:
             losses = ppo_update(self.update_loss, self.optimizer, self.buffer, ppo.epochs, ppo.max_grad_norm,
-                                where=f"at iteration {self.counters.iteration + 1}", max_updates=self._max_updates())
+                                where=f"at iteration {self.counters.iteration + 1}", max_updates=self._max_updates(),
+                                target_kl=ppo.target_kl)
         except TrainingDiverged as error:
             raise TrainingDiverged(f"{error}; last good checkpoint kept in {self.checkpoint_dir}") from None
         return data, losses, relabel_time

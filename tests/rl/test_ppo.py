@@ -123,6 +123,25 @@ def test_ppo_update_stops_after_max_updates_minibatches(max_updates, expected):
     assert _adam_steps(optimizer) == expected + 6
 
 
+@pytest.mark.parametrize(("target_kl", "expected"), [(0.0, 4 * 6), (1e-12, 1), (1e3, 4 * 6)])
+def test_ppo_update_stops_before_the_first_minibatch_past_the_kl_limit(target_kl, expected):
+    """The first minibatch's KL is 0 (the policy has not moved yet), so it always steps; with a tiny limit the
+    second one, which sees the policy after a step, stops the whole update; a huge limit never does."""
+    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+    from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
+
+    from agrl.rl.ppo import make_optimizer, ppo_update
+
+    loss, batch = _loss_and_batch(3072)
+    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(3072), sampler=SamplerWithoutReplacement(),
+                                    batch_size=512)
+    buffer.extend(batch)
+    optimizer = make_optimizer(loss, 1e-3)
+    losses = ppo_update(loss, optimizer, buffer, epochs=4, max_grad_norm=0.5, where="here", target_kl=target_kl)
+    assert _adam_steps(optimizer) == expected
+    assert losses["minibatches"] == expected
+
+
 def test_equal_update_cost_gives_a_reuse_update_the_minibatches_of_a_plain_iteration(compose_train, tmp_path):
     """One reuse iteration of 16 x 8 decisions whose buffer holds more rows than it collected (relabelled
     episodes are longer): 3 passes over all rows by default, 3 passes' worth of one batch (3 x ceil(128 / 48))

@@ -65,13 +65,14 @@ def first_update(overrides: list[str]) -> dict:
         with torch.no_grad():
             before = trainer.actor.get_dist(states).probs
         losses = ppo_update(trainer.update_loss, trainer.optimizer, trainer.buffer, config.ppo.epochs,
-                            config.ppo.max_grad_norm, where="diagnosis")
+                            config.ppo.max_grad_norm, where="diagnosis", target_kl=config.ppo.target_kl)
         with torch.no_grad():
             after = trainer.actor.get_dist(states).probs
         kl = (before * (before.clamp_min(1e-12).log() - after.clamp_min(1e-12).log())).sum(-1)
         record.update({
             "update_kl_approx": round(losses["kl_approx"], 4),
             "update_clip_fraction": round(losses["clip_fraction"], 3),
+            "update_minibatches": int(losses["minibatches"]),
             "real_states_kl_mean": round(float(kl.mean()), 4),
             "real_states_greedy_changed_fraction": round(float((before.argmax(-1) != after.argmax(-1)).float().mean()), 3),
         })
