@@ -74,7 +74,8 @@ def first_update(overrides: list[str]) -> dict:
             "update_clip_fraction": round(losses["clip_fraction"], 3),
             "update_minibatches": int(losses["minibatches"]),
             "real_states_kl_mean": round(float(kl.mean()), 4),
-            "real_states_greedy_changed_fraction": round(float((before.argmax(-1) != after.argmax(-1)).float().mean()), 3),
+            "real_states_greedy_changed_fraction": round(float((before.argmax(-1) != after.argmax(-1)).float().mean()),
+                                                         3),
         })
         trainer.collector.shutdown()
         return record
