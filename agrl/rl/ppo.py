@@ -86,8 +86,9 @@ def ppo_update(
 ) -> dict[str, float]:
     """``epochs`` passes over the buffer in minibatches, stopping after ``max_updates`` minibatches if given, or
     before the first minibatch whose approximate KL from the collecting policy exceeds ``1.5 * target_kl`` if
-    ``target_kl`` > 0 (stable-baselines3's rule); the mean of each logged loss term, and ``minibatches``: the
-    optimiser steps taken.
+    ``target_kl`` > 0 (stable-baselines3's rule, on the loss's own ``kl_approx``: the mean of the stored minus the
+    current log-probability of the minibatch's actions); the mean of each logged loss term, and ``minibatches``:
+    the optimiser steps taken.
 
     Raises :class:`TrainingDiverged` (naming ``where`` and the update) on a non-finite loss or gradient,
     before the optimiser step, so the parameters stay finite.

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 import torch
@@ -196,4 +198,21 @@ def test_buffer_keeps_only_the_fields_the_update_reads(tmp_path, compose_train, 
     trainer.learn(data)
     stored = set(trainer.buffer[:].keys(True, True)) - {"index"}  # "index": the buffer adds it on reading
     assert stored == {"observation", "action", "action_log_prob", "advantage", "value_target", "state_value"}
+    trainer.collector.shutdown()
+
+
+@pytest.mark.parametrize(("target_kl", "limited"), [(0.0, False), (1e-12, True)])
+def test_the_kl_limit_reaches_the_trainers_update(tmp_path, compose_train, tiny_args, target_kl, limited):
+    """``ppo.target_kl`` from the config stops the trainer's update: with a tiny limit it stops early (the first
+    minibatch, taken before the policy moves, always steps; the estimate of later ones can be below any limit by
+    chance); without one, every epoch's minibatches step."""
+    config = compose_train(*tiny_args({"ppo.target_kl": target_kl}))
+    trainer = Trainer(config, tmp_path / "run")
+    _, losses, _ = trainer.learn(next(iter(trainer.collector)))
+    every_minibatch = config.ppo.epochs * math.ceil(config.ppo.num_envs * config.ppo.steps_per_env
+                                                    / config.ppo.minibatch_size)
+    if limited:
+        assert 1 <= losses["minibatches"] < every_minibatch
+    else:
+        assert losses["minibatches"] == every_minibatch
     trainer.collector.shutdown()
