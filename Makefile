@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
-# The main job on its defaults: the shipped baseline's two stages (docs/results/baseline.md), about 3 minutes on 2 cores.
+# The main job on its defaults: the shipped baseline's two stages (docs/results/baseline.md), 3-4 minutes on 2 cores.
 # Stage 1 trains the fixed-destination agent from scratch at a switch cost of 0.1 until a periodic evaluation reaches
 # 99.5 % (`python -m agrl.train`'s defaults); stage 2 fine-tunes it at 0.3 for 80 iterations (+experiment=switch_finetune).
 # ARGS: extra Hydra overrides for stage 1. FINETUNE_ARGS: for stage 2; its default is the shipped agent's own stage 2,
