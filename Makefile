@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 ARGS ?=
 
-.PHONY: install train train-args test test-slow bench lint clean experiments-table3 experiments-moving report wheel-check
+.PHONY: install train train-fast train-args test test-slow bench lint clean experiments-table3 experiments-moving report wheel-check
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,6 +27,18 @@ FINETUNE_ARGS ?= seed=1 threads=1
 train: train-args install
 	$(PY) -m agrl.train hydra.run.dir=$(TRAIN_DIR)/stage1 $(ARGS)
 	$(PY) -m agrl.train +experiment=switch_finetune method.baseline=$(TRAIN_DIR)/stage1 hydra.run.dir=$(TRAIN_DIR)/stage2 $(FINETUNE_ARGS)
+
+# The same two stages in about half the training time, not the shipped recipe (docs/results/ppo_geometry.md, "Two fast
+# stages"): stage 1 is +experiment=fast (2 x 64 networks, compiled loss, stricter stop) with make train's reward,
+# stage 2 the same fine-tune on those networks with the compiled loss. 107-112 s of training against 222 s for make
+# train in one sitting; 99.69-99.87 % success at 6.9-7.0 instructions on 10 000 fresh episodes (3 seeds).
+# ARGS: extra overrides for both stages (e.g. ARGS='seed=2').
+FAST_TRAIN_DIR ?= runs/fixed/fast/$(NOW)
+FAST_NETWORKS := 'agent.actor_hidden=[64,64]' 'agent.critic_hidden=[64,64]'
+train-fast: train-args install
+	$(PY) -m agrl.train +experiment=fast reward.use_continuous_action=false hydra.run.dir=$(FAST_TRAIN_DIR)/stage1 $(ARGS)
+	$(PY) -m agrl.train +experiment=switch_finetune method.baseline=$(FAST_TRAIN_DIR)/stage1 $(FAST_NETWORKS) \
+	  ppo.compile_loss=true hydra.run.dir=$(FAST_TRAIN_DIR)/stage2 $(ARGS)
 
 # Stage 2 fine-tunes a fixed-destination agent of the default networks: stop at once if ARGS would give it another.
 train-args:

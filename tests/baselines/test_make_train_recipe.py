@@ -80,3 +80,27 @@ def test_make_train_refuses_arguments_stage_two_cannot_fine_tune(args):
 @pytest.mark.parametrize("args", ["", "seed=3", "seed=3 ppo.learning_rate=1e-3 reward.switch_cost=0.2"])
 def test_make_train_accepts_other_stage_one_overrides(args):
     assert _make_train_args(args).returncode == 0
+
+
+def _dry_run_train_commands(target: str, *variables: str) -> list[list[str]]:
+    """The overrides of each ``python -m agrl.train`` command ``make -n <target>`` would run, in order."""
+    result = subprocess.run(["make", "--no-print-directory", "-n", target, *variables], cwd=ROOT,
+                            capture_output=True, text=True, timeout=60, check=True)
+    commands = result.stdout.replace("\\\n", " ").splitlines()
+    return [shlex.split(line.split(" -m agrl.train ", 1)[1]) for line in commands
+            if re.match(r"\S*python\S* -m agrl\.train ", line)]
+
+
+def test_make_train_fast_fine_tunes_its_own_stage_one(compose_train):
+    stage_one, stage_two = _dry_run_train_commands("train-fast", "FAST_TRAIN_DIR=/tmp/agrl-fast", "ARGS=seed=2")
+    assert "hydra.run.dir=/tmp/agrl-fast/stage1" in stage_one and "hydra.run.dir=/tmp/agrl-fast/stage2" in stage_two
+    first, second = (compose_train(*[item for item in overrides if not item.startswith("hydra.")])
+                     for overrides in (stage_one, stage_two))
+    assert second.method.name == "pretrained" and second.method.baseline == "/tmp/agrl-fast/stage1"
+    # Stage 2 loads stage 1's actor and critic: the networks must be the same.
+    assert second.agent == first.agent and first.agent.actor_hidden == [64, 64]
+    assert first.seed == second.seed == 2
+    # make train's reward (the position term and a switch cost), then the fine-tune's larger cost, both compiled.
+    assert first.reward.name == second.reward.name == "switch" and not first.reward.use_continuous_action
+    assert second.reward.switch_cost > first.reward.switch_cost
+    assert first.ppo.compile_loss and second.ppo.compile_loss
