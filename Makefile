@@ -40,10 +40,11 @@ train-fast: train-args install
 	$(PY) -m agrl.train +experiment=switch_finetune method.baseline=$(FAST_TRAIN_DIR)/stage1 $(FAST_NETWORKS) \
 	  ppo.compile_loss=true hydra.run.dir=$(FAST_TRAIN_DIR)/stage2 $(ARGS)
 
-# Stage 2 fine-tunes a fixed-destination agent of the default networks: stop at once if ARGS would give it another.
+# Stage 2 of make train and train-fast fine-tunes stage 1's fixed-destination agent on its recipe's networks: stop at
+# once if ARGS would give it another task, method or networks.
 train-args:
 	@case " $(ARGS) " in *" task="*|*" method="*|*" +experiment="*|*" agent."*) \
-	  echo "make train: ARGS='$(ARGS)' changes the task, method, experiment or networks, but make train's stage 2 fine-tunes the fixed-destination agent of the default networks; allowed: other overrides (e.g. ARGS='seed=3'); for other tasks and methods run python -m agrl.train (README)" >&2; \
+	  echo "make $(MAKECMDGOALS): ARGS='$(ARGS)' changes the task, method, experiment or networks, but its stage 2 fine-tunes the fixed-destination agent of its recipe's networks; allowed: other overrides (e.g. ARGS='seed=3'); for other tasks and methods run python -m agrl.train (README)" >&2; \
 	  exit 2;; \
 	esac
 

@@ -104,3 +104,10 @@ def test_make_train_fast_fine_tunes_its_own_stage_one(compose_train):
     assert first.reward.name == second.reward.name == "switch" and not first.reward.use_continuous_action
     assert second.reward.switch_cost > first.reward.switch_cost
     assert first.ppo.compile_loss and second.ppo.compile_loss
+
+
+def test_make_train_fast_checks_its_arguments_first():
+    dry_run = subprocess.run(["make", "--no-print-directory", "-n", "train-fast", "ARGS=task=uniform"], cwd=ROOT,
+                             capture_output=True, text=True, timeout=60, check=True).stdout
+    assert "changes the task, method, experiment or networks" in dry_run
+    assert dry_run.index("changes the task") < dry_run.index("-m agrl.train")
