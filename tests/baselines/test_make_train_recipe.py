@@ -82,11 +82,15 @@ def test_make_train_accepts_other_stage_one_overrides(args):
     assert _make_train_args(args).returncode == 0
 
 
+def _dry_run(target: str, *variables: str) -> str:
+    """What ``make -n <target>`` prints: the commands it would run, none of them run."""
+    return subprocess.run(["make", "--no-print-directory", "-n", target, *variables], cwd=ROOT,
+                          capture_output=True, text=True, timeout=60, check=True).stdout
+
+
 def _dry_run_train_commands(target: str, *variables: str) -> list[list[str]]:
     """The overrides of each ``python -m agrl.train`` command ``make -n <target>`` would run, in order."""
-    result = subprocess.run(["make", "--no-print-directory", "-n", target, *variables], cwd=ROOT,
-                            capture_output=True, text=True, timeout=60, check=True)
-    commands = result.stdout.replace("\\\n", " ").splitlines()
+    commands = _dry_run(target, *variables).replace("\\\n", " ").splitlines()
     return [shlex.split(line.split(" -m agrl.train ", 1)[1]) for line in commands
             if re.match(r"\S*python\S* -m agrl\.train ", line)]
 
@@ -107,7 +111,6 @@ def test_make_train_fast_fine_tunes_its_own_stage_one(compose_train):
 
 
 def test_make_train_fast_checks_its_arguments_first():
-    dry_run = subprocess.run(["make", "--no-print-directory", "-n", "train-fast", "ARGS=task=uniform"], cwd=ROOT,
-                             capture_output=True, text=True, timeout=60, check=True).stdout
+    dry_run = _dry_run("train-fast", "ARGS=task=uniform")
     assert "changes the task, method, experiment or networks" in dry_run
     assert dry_run.index("changes the task") < dry_run.index("-m agrl.train")
