@@ -22,3 +22,14 @@ python3 -c "import json; d=json.load(open('$out/fast_s0/eval/eval.json')); print
 rm -rf $out/fast_s0/checkpoints $out/fast_s0/eval/episodes.csv
 find $out -name '*.stderr' -empty -delete
 echo "$(date -u +%H:%M:%S) sitting done" >> $log
+# Added after the first pass (15:48): the calibration run on one torch thread against two, A B A B.
+if [ "$1" = threads ]; then
+  for round in 1 2; do
+    for threads in 1 2; do
+      name=fast_s0_threads${threads}_round$round
+      timed $name /dev/null .venv/bin/python -m agrl.train +experiment=fast seed=0 threads=$threads progress=false hydra.run.dir=$out/$name
+      python3 -c "import json; d=json.load(open('$out/$name/eval/eval.json')); print('$name: training', d['training_wall_time_s'], 's,', d['iterations'], 'iterations,', d['success_rate'], 'success')" >> $log
+      rm -rf $out/$name/checkpoints $out/$name/eval/episodes.csv
+    done
+  done
+fi
