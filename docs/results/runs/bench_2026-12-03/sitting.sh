@@ -14,15 +14,16 @@ timed() {  # name output command...
   "$@" > "$output" 2> "$out/$name.stderr" || echo "FAILED $name" >> $log
   echo "$(date -u +%H:%M:%S) done  $name: $(python3 -c "print(round($(date +%s.%N) - $start, 1))") s" >> $log
 }
+if [ "$1" != threads ]; then
 timed bench $out/bench.jsonl .venv/bin/python -m agrl.bench
 timed bench_reuse $out/bench_reuse.jsonl .venv/bin/python -m agrl.bench_reuse
 timed bench_peer $out/bench_peer.jsonl .venv/bin/python -m agrl.bench_peer --trainers agrl agrl-compiled stable-baselines3 floor
 timed fast_s0 /dev/null .venv/bin/python -m agrl.train +experiment=fast seed=0 progress=false hydra.run.dir=$out/fast_s0
 python3 -c "import json; d=json.load(open('$out/fast_s0/eval/eval.json')); print('fast_s0: training', d['training_wall_time_s'], 's,', d['iterations'], 'iterations,', d['success_rate'], 'success,', round(d['instructions_per_episode'], 2), 'instructions')" >> $log
 rm -rf $out/fast_s0/checkpoints $out/fast_s0/eval/episodes.csv
-find $out -name '*.stderr' -empty -delete
-echo "$(date -u +%H:%M:%S) sitting done" >> $log
-# Added after the first pass (15:48): the calibration run on one torch thread against two, A B A B.
+fi
+# Added after the first pass (15:48), `bash .../sitting.sh threads`: the calibration run on one torch thread against
+# two, A B A B.
 if [ "$1" = threads ]; then
   for round in 1 2; do
     for threads in 1 2; do
@@ -33,3 +34,5 @@ if [ "$1" = threads ]; then
     done
   done
 fi
+find $out -name '*.stderr' -empty -delete
+echo "$(date -u +%H:%M:%S) sitting done" >> $log
