@@ -5,6 +5,7 @@
 # against iterations). Seeds 0-2; two one-thread runs at a time (success, instructions and iterations are the
 # measure, not seconds).
 #   bash docs/results/runs/fast_two_stage_2026-12-03/screen_one_stage.sh
+#   bash docs/results/runs/fast_two_stage_2026-12-03/screen_one_stage_eval.sh   # 10 000-episode evaluations
 #   python -m agrl.report runs docs/results/runs/fast_two_stage_2026-12-03/one_stage
 cd "$(git rev-parse --show-toplevel)"
 export OMP_NUM_THREADS=1
@@ -26,5 +27,6 @@ for seed in 0 1 2; do
   run k0.2_s$seed $one_stage reward.switch_cost=0.2 seed=$seed &
   wait
 done
-rm -rf $out/*/checkpoints $out/*/eval/episodes.csv
+# The checkpoints stay for screen_one_stage_eval.sh, which deletes them. (When this screen ran on 2026-12-03 this
+# line deleted them here; hence that script's KEPT copies and its `again` runs.)
 echo "$(date -u +%H:%M:%S) screen done" >> $log
