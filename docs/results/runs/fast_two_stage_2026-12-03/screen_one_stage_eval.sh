@@ -3,7 +3,8 @@
 # time). screen_one_stage.sh deleted the checkpoints when it finished: seeds 0 and 1 were copied aside before that
 # and are put back here (from $KEPT), seed 2 is trained again (one thread: the same agent; `again` runs, whose own
 # final 1000-episode evaluation must equal the screen's).
-#   KEPT=<folder with k0.X_sN/checkpoints> bash docs/results/runs/fast_two_stage_2026-12-03/screen_one_stage_eval.sh
+#   bash docs/results/runs/fast_two_stage_2026-12-03/screen_one_stage_eval.sh   # after screen_one_stage.sh
+#   (on 2026-12-03: KEPT=<the copies' folder> bash ...; without KEPT the screen's own checkpoints are used)
 cd "$(git rev-parse --show-toplevel)"
 export OMP_NUM_THREADS=1
 out=docs/results/runs/fast_two_stage_2026-12-03/one_stage
@@ -18,7 +19,7 @@ done
 wait
 for k in 0.2 0.3; do
   echo "k${k}_s2 again: same final evaluation as the screen's: $(python3 -c "import json,sys; a=json.load(open(sys.argv[1])); b=json.load(open(sys.argv[2])); print(all(a[x] == b[x] for x in ('success_rate', 'instructions_per_episode', 'iterations', 'outcomes')))" $out/k${k}_s2/eval/eval.json $out/k${k}_s2_again/eval/eval.json)" >> $log
-  for seed in 0 1; do cp -r $KEPT/k${k}_s$seed/checkpoints $out/k${k}_s$seed/; done
+  if [ -n "$KEPT" ]; then for seed in 0 1; do cp -r $KEPT/k${k}_s$seed/checkpoints $out/k${k}_s$seed/; done; fi
 done
 evaluate() {  # run checkpoint-run seed
   .venv/bin/python -m agrl.evaluate checkpoint=$out/$2 episodes=10000 seed=$3 trajectories=0 \
@@ -33,5 +34,5 @@ for k in 0.2 0.3; do
     wait
   done
 done
-rm -rf $out/*/checkpoints $out/*/eval/episodes.csv $out/*_again/tensorboard
+rm -rf $out/*/checkpoints $out/*/eval/episodes.csv $out/eval_*/episodes.csv $out/*_again/tensorboard
 echo "$(date -u +%H:%M:%S) evaluation done" >> $log
