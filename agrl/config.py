@@ -92,6 +92,22 @@ class TaskConfig:
             _require(self.max_turn_rate_deg >= 0, "task.max_turn_rate_deg", self.max_turn_rate_deg, ">= 0 deg/s")
 
 
+#: The tasks that use the command-line shorthands ``speed=`` and ``radius=`` (conf/config.yaml, evaluate.yaml).
+SHORTHAND_TASKS = {"speed": ("uniform", "curved"), "radius": ("curved",)}
+
+
+def _require_shorthands_used(task: TaskConfig | None, speed: float | None, radius: float | None) -> None:
+    """A shorthand the task does not use would be dropped without a word: refuse it."""
+    for key, value in (("speed", speed), ("radius", radius)):
+        users = SHORTHAND_TASKS[key]
+        if value is not None and task is None:
+            raise ConfigError(f"{key}={value!r} is not allowed without task=...: the checkpoint's own task is "
+                              f"evaluated; give task={' or '.join(users)} with it")
+        if value is not None:
+            _require(task.name in users, key, value,
+                     f"task={task.name} has no destination {key} (only task={' or '.join(users)})")
+
+
 def task_label(task) -> str:
     """A short human name of a task config for titles: ``uniform 50 m/s``, ``curved 20 m/s, radius 500 m``."""
     if task.name == "uniform":
@@ -357,6 +373,7 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         _require_device("device", self.device)
+        _require_shorthands_used(self.task, self.speed, self.radius)
         _require(self.threads is None or self.threads >= 1, "threads", self.threads, "null or an integer >= 1")
         _require(self.checkpoint_interval >= 1, "checkpoint_interval", self.checkpoint_interval, ">= 1")
         _require(0 <= self.target_success <= 1, "target_success", self.target_success, "[0, 1]")
@@ -378,6 +395,7 @@ class EvaluateConfig:
     speed: float | None = MISSING
     radius: float | None = MISSING
     device: str = MISSING
+    threads: int | None = MISSING  # torch intra-op threads; None: torch's default (one per core)
     trajectories: int = MISSING
     output_dir: str | None = MISSING
 
@@ -385,6 +403,8 @@ class EvaluateConfig:
         _require(self.episodes >= 1, "episodes", self.episodes, ">= 1")
         _require(self.trajectories >= 0, "trajectories", self.trajectories, ">= 0")
         _require_device("device", self.device)
+        _require_shorthands_used(self.task, self.speed, self.radius)
+        _require(self.threads is None or self.threads >= 1, "threads", self.threads, "null or an integer >= 1")
 
 
 def _default_if_null(value: Any, default: Any) -> Any:

@@ -17,6 +17,7 @@ import torch
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
+from agrl.cli import run_checked
 from agrl.config import (
     ConfigError,
     TaskConfig,
@@ -47,6 +48,8 @@ def evaluate(cfg) -> dict[str, Any]:
     from agrl.rl.evaluation import instruction_latency_ms, run_episodes, summarise, write_evaluation
 
     device = torch.device(cfg.device)
+    if cfg.threads is not None:
+        torch.set_num_threads(cfg.threads)
     actor, saved, path = load_agent(cfg.checkpoint, device)
     task = cfg.task if cfg.task is not None else validated_section(TaskConfig, saved["task"])
     params = saved_guidance_parameters(saved, task)
@@ -77,4 +80,4 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_checked(main, "agrl.evaluate", "evaluate")

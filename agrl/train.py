@@ -19,6 +19,7 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
+from agrl.cli import run_checked
 from agrl.config import ConfigError, load_config
 from agrl.rl.checkpoint import CheckpointError, load_checkpoint, resolve_checkpoint_path
 
@@ -83,4 +84,4 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_checked(main, "agrl.train", "config")

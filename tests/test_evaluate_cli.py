@@ -6,6 +6,7 @@ import csv
 import json
 
 import pytest
+import torch
 
 from agrl.evaluate import evaluate
 from agrl.report import read_metrics
@@ -38,8 +39,44 @@ def cli_runs(tiny_run, run_cli, tmp_path_factory):
         "seed3": ("evaluate", f"checkpoint={tiny_run.run_dir}", "episodes=20", "seed=3",
                   f"hydra.run.dir={directory / 'seed3'}"),
         "truncated": ("evaluate", f"checkpoint={truncated}", f"hydra.run.dir={directory / 'truncated'}"),
+        **{case: ("evaluate", *arguments, f"hydra.run.dir={directory / case}")
+           for case, (arguments, _) in ONE_LINE_ERRORS.items()},
     }
     return {"directory": directory, "truncated_file": truncated, **run_cli.batch(jobs)}
+
+
+#: Bad command lines and what their one-line error must say: {case: (arguments, fragments of the line)}.
+ONE_LINE_ERRORS = {
+    "no-checkpoint": ((), ("checkpoint is required", "a run directory, or baseline")),
+    "speed-without-task": (("checkpoint=baseline", "speed=50"),
+                           ("speed=50.0 is not allowed without task=", "give task=uniform or curved")),
+    "task-foo": (("checkpoint=baseline", "task=foo"), ("task=foo is not allowed: one of curved, fixed",)),
+    "episodes-key": (("checkpoint=baseline", "episode=5"), ("episode=5 is not allowed", "no key 'episode'",
+                                                            "episodes")),
+    "zero-threads": (("checkpoint=baseline", "threads=0"), ("threads=0 is not allowed",)),
+}
+
+
+@pytest.mark.parametrize("case", sorted(ONE_LINE_ERRORS))
+def test_bad_command_line_exits_2_with_one_line(cli_runs, case):
+    result = cli_runs[case]
+    assert result.returncode == 2, result.stderr[-3000:]
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, lines
+    assert lines[0].startswith("agrl.evaluate: error: ")
+    for fragment in ONE_LINE_ERRORS[case][1]:
+        assert fragment in lines[0]
+    assert not (cli_runs["directory"] / case).exists()
+
+
+def test_threads_sets_torchs_intra_op_threads(tiny_run, compose_evaluate, tmp_path):
+    config = compose_evaluate(f"checkpoint={tiny_run.run_dir}", "episodes=4", "trajectories=0", "threads=2",
+                              f"output_dir={tmp_path}")
+    try:
+        evaluate(config)
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(1)  # this module's one thread (torch_one_thread)
 
 
 def test_evaluate_cli_writes_summary_and_files(cli_runs, tiny_run):

@@ -67,7 +67,8 @@ def test_a_missing_source_is_one_line(exported):
     result = exported["missing"]
     assert result.returncode == 2, result.stderr[-3000:]
     lines = [line for line in result.stderr.splitlines() if line.strip()]
-    assert lines == [f"agrl.export: error: {exported['directory'] / 'missing.pt'}: no such checkpoint file"]
+    assert lines == [f"agrl.export: error: {exported['directory'] / 'missing.pt'}: no such checkpoint file or run "
+                     "directory; allowed: a checkpoint file, a run directory, or baseline (the shipped agent)"]
     assert not (exported["directory"] / "never.pt").exists()
 
 

@@ -27,7 +27,7 @@ LAYERS = {
     "agrl.rl": 3,  # actor-critic, PPO trainer, checkpoints, evaluation, policy reuse
     "agrl.train": 4, "agrl.evaluate": 4, "agrl.export": 4, "agrl.report": 4,  # entry points
     "agrl.bench": 4, "agrl.bench_reuse": 4, "agrl.bench_peer": 4, "agrl.bench_race": 4, "agrl.guide": 4,
-    "agrl.distill": 4,
+    "agrl.distill": 4, "agrl.cli": 4,  # the entry points' command-line check
 }
 
 

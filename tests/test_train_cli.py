@@ -181,48 +181,48 @@ def test_ctrl_c_saves_latest_and_resume_continues(tmp_path, run_cli, tiny_args, 
 
 
 # ---------------------------------------------------------------------------- command-line errors
+#: Bad command lines and what their one-line error must say: {case: (arguments, fragments of the line)}.
+ONE_LINE_ERRORS = {
+    "sped": (("sped=5",), ("sped=5 is not allowed", "the config has no key 'sped'", "speed")),
+    "ppo-key": (("ppo.num_env=64",), ("ppo.num_env=64 is not allowed", "ppo has no key 'num_env'", "num_envs")),
+    "task-foo": (("task=foo",), ("task=foo is not allowed: one of curved, fixed, irregular, uniform",)),
+    "experiment-foo": (("+experiment=fsat",), ("+experiment=fsat is not allowed: one of fast, switch_finetune",)),
+    "seed-type": (("seed=abc",), ("seed=abc is not allowed", "could not be converted to Integer")),
+    "negative-speed": (("task=uniform", "speed=-5"), ("speed=-5.0 is not allowed", "> 0 m/s")),
+    "zero-envs": (("ppo.num_envs=0",), ("ppo.num_envs=0 is not allowed",)),
+    "unused-speed": (("speed=50",), ("speed=50.0 is not allowed: task=fixed has no destination speed",
+                                     "only task=uniform or curved")),
+    "unused-radius": (("task=uniform", "radius=500"), ("radius=500.0 is not allowed", "only task=curved")),
+    "sweep-value": (("-m", "task=uniform", "speed=10,-20"), ("speed=-20.0 is not allowed",)),
+    "sweep-without-m": (("seed=0,1",), ("seed=0,1 is not allowed: a sweep needs -m",)),
+}
+
+
 @pytest.fixture(scope="module")
 def bad_invocations(run_cli, tmp_path_factory):
-    """Every failing invocation of this module, run at once: {case: CompletedProcess}."""
+    """Every failing invocation of this module, run at once: {case: CompletedProcess}, and ``directory``: each
+    case's run (and sweep) directory is ``directory / case``, which must not be created."""
     directory = tmp_path_factory.mktemp("bad_train")
     bad = directory / "random.pt"
     bad.write_bytes(random.Random(7).randbytes(4096))
-    jobs = {
-        "sped": ("train", "sped=5"),
-        "task-foo": ("train", "task=foo"),
-        "negative-speed": ("train", "task=uniform", "speed=-5"),
-        "zero-envs": ("train", "ppo.num_envs=0"),
-        "resume-random-bytes": ("train", f"resume={bad}", f"hydra.run.dir={directory / 'run'}"),
-    }
-    return {"bad_file": bad, **run_cli.batch(jobs)}
+    jobs = {case: ("train", *arguments, f"hydra.run.dir={directory / case}", f"hydra.sweep.dir={directory / case}")
+            for case, (arguments, _) in ONE_LINE_ERRORS.items()}
+    jobs["resume-random-bytes"] = ("train", f"resume={bad}", f"hydra.run.dir={directory / 'run'}")
+    return {"bad_file": bad, "directory": directory, **run_cli.batch(jobs)}
 
 
-def test_misspelt_key_is_a_hydra_error_naming_it(bad_invocations):
-    result = bad_invocations["sped"]
-    assert result.returncode != 0
-    assert "Key 'sped' not in" in result.stderr
-    assert "Traceback" not in result.stderr
-
-
-def test_unknown_task_lists_the_available_options(bad_invocations):
-    result = bad_invocations["task-foo"]
-    assert result.returncode != 0
-    assert "task/foo" in result.stderr
-    assert "Available options in 'task'" in result.stderr
-    for option in ("fixed", "uniform", "curved", "irregular"):
-        assert option in result.stderr
-    assert "Traceback" not in result.stderr
-
-
-@pytest.mark.parametrize(("case", "named"),
-                         [("negative-speed", "speed=-5.0"), ("zero-envs", "ppo.num_envs=0")])
-def test_out_of_range_value_exits_2_with_one_line(bad_invocations, case, named):
+@pytest.mark.parametrize("case", sorted(ONE_LINE_ERRORS))
+def test_bad_command_line_exits_2_with_one_line_naming_it(bad_invocations, case):
+    """Mistyped keys, options and values, and overrides the task would ignore, stop before Hydra runs: one line
+    naming the override and what is allowed, exit code 2, and no run directory."""
     result = bad_invocations[case]
     assert result.returncode == 2, result.stderr[-3000:]
     lines = error_lines(result.stderr)
     assert len(lines) == 1, lines
-    assert lines[0].startswith("agrl.train: error:")
-    assert named in lines[0]
+    assert lines[0].startswith("agrl.train: error: ")
+    for fragment in ONE_LINE_ERRORS[case][1]:
+        assert fragment in lines[0]
+    assert not (bad_invocations["directory"] / case).exists()
 
 
 def test_resume_from_corrupt_checkpoint_exits_2_naming_the_file(bad_invocations):
@@ -289,7 +289,8 @@ def test_reuse_without_a_baseline_is_one_line(bad_runs):
     assert line == ("agrl.train: error: method.baseline=None is not allowed: "
                     "method=reuse needs a baseline checkpoint (a path, or 'baseline')")
     line = single_error_line(bad_runs["reuse-missing-baseline"], 2)
-    assert line == f"agrl.train: error: {bad_runs['missing']}: no such checkpoint file"
+    assert line == (f"agrl.train: error: method.baseline: {bad_runs['missing']}: no such checkpoint file or run "
+                    "directory; allowed: a checkpoint file, a run directory, or baseline (the shipped agent)")
 
 
 def test_candidate_stride_beyond_the_decision_budget_is_one_line(bad_runs):

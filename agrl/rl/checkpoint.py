@@ -155,6 +155,9 @@ def resolve_checkpoint_path(reference: str | Path) -> Path:
         if not candidate.is_file():
             raise CheckpointError(f"{path}: run directory has no checkpoints/latest.pt")
         return candidate
+    if not path.exists():
+        raise CheckpointError(f"{path}: no such checkpoint file or run directory; allowed: a checkpoint file, a run "
+                              "directory, or baseline (the shipped agent)")
     return path
 
 

@@ -155,8 +155,11 @@ class Trainer:
 
     def _load_baseline(self, reference: str):
         """The frozen baseline actor B; pretrained (and reuse from B) also start Z's networks from it."""
-        path = resolve_checkpoint_path(reference)
-        payload = load_checkpoint(path, required=("actor", "critic"))
+        try:
+            path = resolve_checkpoint_path(reference)
+            payload = load_checkpoint(path, required=("actor", "critic"))
+        except CheckpointError as error:
+            raise CheckpointError(f"method.baseline: {error}") from None
         baseline_agent = payload.get("config", {}).get("agent", {})
         self.baseline_observation = baseline_agent.get("observation", LEGACY_OBSERVATION)
         if self.cfg.method.name == "pretrained" or self.cfg.method.start_from_baseline:

@@ -202,7 +202,7 @@ def test_crafted_checkpoint_is_refused_without_running_its_code(tmp_path, run_cl
     # The same file given to the CLI as a baseline: exit 2, one line, and the payload never ran.
     result = run_cli("train", "method=pretrained", f"method.baseline={path}", f"hydra.run.dir={tmp_path / 'h'}")
     assert result.returncode == 2
-    assert result.stderr.strip().splitlines() == [f"agrl.train: error: {message}"]
+    assert result.stderr.strip().splitlines() == [f"agrl.train: error: method.baseline: {message}"]
     assert not marker.exists()
 
 

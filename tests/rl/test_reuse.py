@@ -67,7 +67,8 @@ def task_params(compose_parameters):
     def make(kind: MotionKind = MotionKind.UNIFORM, start=START,
              destination_start=(0.0, 0.0, 0.0, 0.0)) -> GuidanceParameters:
         (x_low, x_high), y, z = start
-        task = compose_parameters(f"task={kind.value}", "speed=50", "reward=both")
+        speed = ("speed=50",) if kind in (MotionKind.UNIFORM, MotionKind.CURVED) else ()  # the tasks that use it
+        task = compose_parameters(f"task={kind.value}", *speed, "reward=both")
         return dataclasses.replace(
             task,
             destination=dataclasses.replace(task.destination, start=destination_start),

@@ -1,0 +1,44 @@
+"""``agrl.cli``: the entry points' command line, checked before Hydra runs (the subprocess side, exit codes and
+messages, is in tests/test_train_cli.py and tests/test_evaluate_cli.py)."""
+
+from __future__ import annotations
+
+import pytest
+
+from agrl.cli import check_overrides
+from agrl.config import ConfigError
+
+
+def test_valid_overrides_pass():
+    check_overrides(["task=curved", "radius=500", "method=reuse", "ppo.num_envs=64", "+experiment=fast"], "config")
+    check_overrides(["checkpoint=baseline", "task=uniform", "speed=20", "threads=1"], "evaluate")
+
+
+def test_hydras_own_overrides_and_flags_are_left_to_hydra():
+    check_overrides(["hydra/launcher=basic", "hydra.run.dir=/nowhere", "hydra.job.chdir=false", "seed=1"], "config")
+    for flag in ("--help", "--cfg=job", "--info"):
+        check_overrides([flag, "sed=1"], "config")  # Hydra prints help or the config; nothing runs
+
+
+def test_every_value_of_every_sweep_is_checked():
+    check_overrides(["-m", "task=uniform", "speed=10,20,50,100", "method=scratch,pretrained,reuse", "seed=0,1,2"],
+                    "config")
+    with pytest.raises(ConfigError, match=r"^method=foo is not allowed: one of pretrained, reuse, scratch$"):
+        check_overrides(["--multirun", "task=uniform", "speed=10,20", "method=scratch,foo"], "config")
+    with pytest.raises(ConfigError, match=r"^speed=-20\.0 is not allowed"):
+        check_overrides(["-m", "seed=0,1", "task=uniform", "speed=10,-20"], "config")
+    with pytest.raises(ConfigError, match=r"^task=foo is not allowed"):
+        check_overrides(["-m", "task=choice(fixed,foo)", "seed=range(0,3)"], "config")
+    check_overrides(["-m", "task=glob(f*)", "seed=range(0,3)"], "config")  # whatever it expands to, no crash
+
+
+def test_the_culprit_is_named_among_valid_overrides():
+    with pytest.raises(ConfigError, match=r"^ppo\.epoch=3 is not allowed: ppo has no key 'epoch'; its keys: .*epochs"):
+        check_overrides(["task=uniform", "speed=20", "ppo.epoch=3", "seed=2"], "config")
+
+
+def test_a_resumed_run_is_only_composed():
+    # Its values come from the checkpoint (the run itself refuses a missing file); only composition is checked.
+    check_overrides(["resume=no/such/run", "ppo.total_frames=1000"], "config")
+    with pytest.raises(ConfigError, match=r"^ppo\.total_frame=1000 is not allowed"):
+        check_overrides(["resume=no/such/run", "ppo.total_frame=1000"], "config")
