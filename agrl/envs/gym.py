@@ -177,7 +177,8 @@ class GuidanceGymEnv(gymnasium.Env):
     - ``speed`` (m/s; uniform default 50, curved 20), ``radius`` (m; curved, default 1000),
       ``turn_direction`` (curved: +1 counter-clockwise, -1 clockwise);
     - ``max_decisions``: the decision budget (default 200, ``conf/simulation/paper.yaml``);
-    - ``reward``: ``none``, ``continuous``, ``position`` or ``both`` (default; Table 3);
+    - ``reward``: ``switch`` (default: the training default, ``conf/config.yaml``), or Table 3's ``none``,
+      ``continuous``, ``position`` or ``both``;
     - ``compile``: kept for the vector env (:mod:`agrl.envs.gym_vector`), where it fuses the
       20 ms step with ``torch.compile``; this single env steps in Python floats and ignores it.
 
