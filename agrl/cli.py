@@ -99,6 +99,22 @@ def _composed(overrides: list[str], config_name: str) -> DictConfig:
     raise ConfigError(str(failure).strip().splitlines()[0]) from None
 
 
+def _refuse_added_keys(overrides: list[str], config_name: str) -> None:
+    """``+section.key=value`` adds a key no schema reads (Hydra suggests ``+`` for a mistyped key): refuse it.
+    A ``+group=option`` (``+experiment=fast``) appends a config and stays allowed."""
+    added = [override for override in overrides
+             if override.startswith("+") and not override.startswith("++") and "." in _key(override)]
+    if not added:
+        return
+    without = _composed([override for override in overrides if override not in added], config_name)
+    for override in added:
+        parent, _, leaf = _key(override).rpartition(".")
+        node = OmegaConf.select(without, parent)
+        if isinstance(node, DictConfig) and leaf not in node.keys():
+            raise ConfigError(f"{override} is not allowed: {parent} has no key {leaf!r}; its keys: "
+                              f"{', '.join(str(key) for key in node.keys())}")
+
+
 def check_overrides(arguments: Sequence[str], config_name: str) -> None:
     """Raise :class:`ConfigError` (one line) if the command line's overrides do not make a valid config.
 
@@ -119,6 +135,7 @@ def check_overrides(arguments: Sequence[str], config_name: str) -> None:
         return
     for candidate in candidates:
         config = _composed(candidate, config_name)
+        _refuse_added_keys(candidate, config_name)
         if config.get("resume"):
             continue
         missing = [key for key in REQUIRED_VALUES if key in config.keys() and OmegaConf.is_missing(config, key)]

@@ -42,3 +42,10 @@ def test_a_resumed_run_is_only_composed():
     check_overrides(["resume=no/such/run", "ppo.total_frames=1000"], "config")
     with pytest.raises(ConfigError, match=r"^ppo\.total_frame=1000 is not allowed"):
         check_overrides(["resume=no/such/run", "ppo.total_frame=1000"], "config")
+
+
+def test_adding_a_key_no_schema_reads_is_refused():
+    # Hydra's hint for a mistyped key is "+key=value", which would add a key nothing reads.
+    with pytest.raises(ConfigError, match=r"^\+ppo\.learning_rat=0\.001 is not allowed: ppo has no key 'learning_rat'"):
+        check_overrides(["+ppo.learning_rat=0.001"], "config")
+    check_overrides(["+experiment=fast", "seed=1"], "config")  # appending a config group stays allowed

@@ -184,6 +184,8 @@ def test_ctrl_c_saves_latest_and_resume_continues(tmp_path, run_cli, tiny_args, 
 #: Bad command lines and what their one-line error must say: {case: (arguments, fragments of the line)}.
 ONE_LINE_ERRORS = {
     "sped": (("sped=5",), ("sped=5 is not allowed", "the config has no key 'sped'", "speed")),
+    "added-key": (("+ppo.learning_rat=0.001",), ("+ppo.learning_rat=0.001 is not allowed", "ppo has no key",
+                                                  "learning_rate")),
     "ppo-key": (("ppo.num_env=64",), ("ppo.num_env=64 is not allowed", "ppo has no key 'num_env'", "num_envs")),
     "task-foo": (("task=foo",), ("task=foo is not allowed: one of curved, fixed, irregular, uniform",)),
     "experiment-foo": (("+experiment=fsat",), ("+experiment=fsat is not allowed: one of fast, switch_finetune",)),
