@@ -1,4 +1,5 @@
-"""``python -m agrl.evaluate``: reproducible results, its output files, task overrides and bad checkpoints."""
+"""``python -m agrl.evaluate``: reproducible results, its output files, task overrides, threads, bad checkpoints and
+bad command lines."""
 
 from __future__ import annotations
 
