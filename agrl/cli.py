@@ -5,8 +5,8 @@ Hydra reports a mistyped key, config-group option or value in several lines (wit
 ``HYDRA_FULL_ERROR``), and only after it has created the run directory. :func:`check_overrides` composes the
 same config with Hydra's compose API and validates it against the schemas of :mod:`agrl.config`. A bad override
 then stops with one line that names it and what is allowed, and nothing is written. A multirun (``-m``) has
-each value of each sweep checked. Other Hydra flags (``--help``, ``--cfg`` ...) and Hydra's own overrides
-(``hydra.*``, ``hydra/launcher=...``) are left to Hydra.
+each value of each sweep checked. Hydra's own overrides (``hydra.run.dir=...``, ``hydra/launcher=joblib``) compose
+here as they do in Hydra; its other flags (``--help``, ``--cfg`` ...) are left to it.
 """
 
 from __future__ import annotations
@@ -26,11 +26,6 @@ REQUIRED_VALUES = {
 
 def _key(override: str) -> str:
     return override.split("=", 1)[0].lstrip("+~")
-
-
-def _is_hydras(override: str) -> bool:
-    key = _key(override)
-    return key == "hydra" or key.startswith(("hydra.", "hydra/"))
 
 
 def _candidates(overrides: list[str], multirun: bool) -> list[list[str]]:
@@ -126,7 +121,7 @@ def check_overrides(arguments: Sequence[str], config_name: str) -> None:
     multirun = any(flag in ("-m", "--multirun") for flag in flags)
     if any(flag not in ("-m", "--multirun") for flag in flags):
         return  # --help, --cfg, --info ...: Hydra's own modes
-    overrides = [argument for argument in arguments if not argument.startswith("-") and not _is_hydras(argument)]
+    overrides = [argument for argument in arguments if not argument.startswith("-")]
     try:
         candidates = _candidates(overrides, multirun)
     except ConfigError:

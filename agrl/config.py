@@ -92,14 +92,22 @@ class TaskConfig:
             _require(self.max_turn_rate_deg >= 0, "task.max_turn_rate_deg", self.max_turn_rate_deg, ">= 0 deg/s")
 
 
-#: The tasks that use the command-line shorthands ``speed=`` and ``radius=`` (conf/config.yaml, evaluate.yaml).
-SHORTHAND_TASKS = {"speed": ("uniform", "curved"), "radius": ("curved",)}
+#: The destination parameters each task takes (their defaults live in conf/task/*.yaml, nowhere else).
+TASK_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "fixed": (), "uniform": ("speed",), "curved": ("speed", "radius", "turn_direction"), "irregular": (),
+}
+
+
+def tasks_taking(parameter: str) -> list[str]:
+    """The tasks whose destination takes ``parameter`` (``tasks_taking("radius")`` -> ``["curved"]``)."""
+    return [task for task, parameters in TASK_PARAMETERS.items() if parameter in parameters]
 
 
 def _require_shorthands_used(task: TaskConfig | None, speed: float | None, radius: float | None) -> None:
-    """A shorthand the task does not use would be dropped without a word: refuse it."""
+    """The command-line shorthands ``speed=`` and ``radius=`` (conf/config.yaml, conf/evaluate.yaml): one the task
+    does not take would be dropped without a word, so refuse it."""
     for key, value in (("speed", speed), ("radius", radius)):
-        users = SHORTHAND_TASKS[key]
+        users = tasks_taking(key)
         if value is not None and task is None:
             raise ConfigError(f"{key}={value!r} is not allowed without task=...: the checkpoint's own task is "
                               f"evaluated; give task={' or '.join(users)} with it")

@@ -14,8 +14,10 @@ def test_valid_overrides_pass():
     check_overrides(["checkpoint=baseline", "task=uniform", "speed=20", "threads=1"], "evaluate")
 
 
-def test_hydras_own_overrides_and_flags_are_left_to_hydra():
-    check_overrides(["hydra/launcher=basic", "hydra.run.dir=/nowhere", "hydra.job.chdir=false", "seed=1"], "config")
+def test_hydras_own_overrides_are_checked_and_its_flags_left_to_it():
+    check_overrides(["hydra/launcher=joblib", "hydra.launcher.n_jobs=2", "hydra.run.dir=/nowhere", "seed=1"], "config")
+    with pytest.raises(ConfigError, match=r"^hydra\.launcher\.n_jobs=2 is not allowed"):  # the basic launcher has none
+        check_overrides(["hydra.launcher.n_jobs=2", "seed=1"], "config")
     for flag in ("--help", "--cfg=job", "--info"):
         check_overrides([flag, "sed=1"], "config")  # Hydra prints help or the config; nothing runs
 

@@ -39,7 +39,7 @@ import numpy as np
 import torch
 from gymnasium import spaces
 
-from agrl.config import ConfigError, config_options
+from agrl.config import TASK_PARAMETERS, ConfigError, config_options, tasks_taking
 from agrl.config import guidance_parameters as composed_guidance_parameters
 from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.destinations import redraw_irregular_motion
@@ -52,12 +52,6 @@ from agrl.reference import reference_decision
 
 ENV_ID = "agrl/Guidance-v0"
 _OUTCOME_NAMES = tuple(outcome.name.lower() for outcome in Outcome)  # indexed by the Outcome code
-
-#: The destination parameters each task takes (their defaults live in conf/task/*.yaml, nowhere else).
-TASK_PARAMETERS: dict[str, tuple[str, ...]] = {
-    "fixed": (), "uniform": ("speed",), "curved": ("speed", "radius", "turn_direction"), "irregular": (),
-}
-
 
 def _fail(name: str, value: Any, allowed: str) -> None:
     raise ValueError(f"{name}={value!r} is not allowed: {allowed}")
@@ -100,8 +94,7 @@ def guidance_parameters(
     given = {"speed": speed, "radius": radius, "turn_direction": turn_direction}
     for name, value in given.items():
         if value is not None and name not in TASK_PARAMETERS.get(task, ()):
-            users = [t for t, names in TASK_PARAMETERS.items() if name in names]
-            _fail(name, value, f"task={task} has no destination {name} (only task={' or '.join(users)})")
+            _fail(name, value, f"task={task} has no destination {name} (only task={' or '.join(tasks_taking(name))})")
     if speed is not None:
         overrides.append(f"speed={_finite_positive('speed', speed, task, 'destination speed in m/s')!r}")
     if radius is not None:
