@@ -6,7 +6,13 @@ Hydra reports a mistyped key, config-group option or value in several lines (wit
 same config with Hydra's compose API and validates it against the schemas of :mod:`agrl.config`. A bad override
 then stops with one line that names it and what is allowed, and nothing is written. A multirun (``-m``) has
 each value of each sweep checked. Hydra's own overrides (``hydra.run.dir=...``, ``hydra/launcher=joblib``) compose
-here as they do in Hydra; its other flags (``--help``, ``--cfg`` ...) are left to it.
+here as they do in Hydra; its other flags (``--help``, ``--cfg`` ...) are left to it. A checkpoint the command
+names (``resume=``, ``checkpoint=``, ``method.baseline=``) must exist, and a resumed run takes only the overrides
+of :data:`RESUMABLE_OVERRIDES`.
+
+A resumed run goes on in its own directory: :func:`run_checked` points Hydra's run directory there (its log is
+appended to the run's ``train.log``, its ``.hydra/`` record of the original command is left as it was), so a
+resume leaves no second directory behind.
 """
 
 from __future__ import annotations
@@ -17,11 +23,30 @@ from collections.abc import Callable, Sequence
 from omegaconf import DictConfig, OmegaConf
 
 from agrl.config import ConfigError, compose_config, config_options, load_config
+from agrl.rl.checkpoint import CheckpointError, checkpoint_run_directory, resolve_checkpoint_path
 
 #: Where a required value has no default, what it may be (shown when it is left out).
 REQUIRED_VALUES = {
     "checkpoint": "a checkpoint file, a run directory, or baseline (the shipped fixed-destination agent)",
 }
+
+
+#: Values a resumed run may take from the command line; all else comes from its checkpoint.
+RESUMABLE_OVERRIDES = ("ppo.total_frames", "ppo.max_minutes", "ppo.compile_loss", "target_success", "progress",
+                       "device", "threads", "checkpoint_interval", "eval.")
+#: Keys whose value names a checkpoint (a file, a run directory or ``baseline``): it must exist.
+CHECKPOINT_KEYS = ("resume", "checkpoint", "method.baseline")
+
+
+def refuse_unresumable(overrides: Sequence[str]) -> None:
+    """Raise :class:`ConfigError` for the first of a resumed run's overrides it may not take (all but ``resume``
+    itself and :data:`RESUMABLE_OVERRIDES`: a resumed run keeps its saved config)."""
+    for override in overrides:
+        key = _key(override)
+        if key != "resume" and not key.startswith(RESUMABLE_OVERRIDES):
+            allowed = ", ".join(key + ("*" if key.endswith(".") else "") for key in RESUMABLE_OVERRIDES)
+            raise ConfigError(f"{override} is not allowed with resume: a resumed run keeps its saved config; "
+                              f"only {allowed} may be given")
 
 
 def _key(override: str) -> str:
@@ -110,40 +135,72 @@ def _refuse_added_keys(overrides: list[str], config_name: str) -> None:
                               f"{', '.join(str(key) for key in node.keys())}")
 
 
-def check_overrides(arguments: Sequence[str], config_name: str) -> None:
-    """Raise :class:`ConfigError` (one line) if the command line's overrides do not make a valid config.
+def check_overrides(arguments: Sequence[str], config_name: str) -> DictConfig | None:
+    """Raise :class:`ConfigError` (one line) if the command line's overrides do not make a valid config; return
+    the composed config (None for a multirun or Hydra's own modes).
 
     ``arguments`` are the command-line arguments (``sys.argv[1:]``); ``config_name`` the root config in
     ``conf/`` (``config`` for training, ``evaluate``). A run that resumes (``resume=...``) takes its values from
-    the checkpoint, so only its composition is checked here.
+    the checkpoint, so only its composition, its overrides (:func:`refuse_unresumable`) and its checkpoint's
+    existence are checked here.
     """
     flags = [argument for argument in arguments if argument.startswith("-")]
     multirun = any(flag in ("-m", "--multirun") for flag in flags)
     if any(flag not in ("-m", "--multirun") for flag in flags):
-        return  # --help, --cfg, --info ...: Hydra's own modes
+        return None  # --help, --cfg, --info ...: Hydra's own modes
     overrides = [argument for argument in arguments if not argument.startswith("-")]
     try:
         candidates = _candidates(overrides, multirun)
     except ConfigError:
         raise
     except Exception:  # a sweep this check does not expand by itself (glob over a group's options ...): Hydra's
-        return
+        return None
+    composed = []
     for candidate in candidates:
         config = _composed(candidate, config_name)
         _refuse_added_keys(candidate, config_name)
+        composed.append(config)
         if config.get("resume"):
+            refuse_unresumable([override for override in candidate if not _key(override).startswith("hydra")])
+            _check_checkpoint("resume", config.resume)
             continue
         missing = [key for key in REQUIRED_VALUES if key in config.keys() and OmegaConf.is_missing(config, key)]
         if missing:
             raise ConfigError(f"{missing[0]} is required: {missing[0]}=<{REQUIRED_VALUES[missing[0]]}>")
         load_config(config)
+        for key in CHECKPOINT_KEYS:
+            reference = OmegaConf.select(config, key, default=None)
+            if reference and not (key == "method.baseline" and config.method.name == "scratch"):
+                _check_checkpoint(key, reference)
+    return None if multirun else composed[0]
+
+
+def _check_checkpoint(key: str, reference: str) -> None:
+    """That ``reference`` names a checkpoint file, a run directory with one, or the shipped baseline (it is not
+    read here: the run reads it, safely, and says what is wrong with its content)."""
+    try:
+        resolve_checkpoint_path(reference)
+    except CheckpointError as error:
+        raise ConfigError(f"{key}: {error}") from None
+
+
+def resume_in_place(arguments: Sequence[str], config: DictConfig | None) -> list[str]:
+    """Hydra overrides that make ``resume=<run>`` go on in the run's own directory: Hydra's run directory is the
+    run's, and Hydra writes no ``.hydra/`` there (the original command's record stays). None for a multirun, or
+    if the command line sets ``hydra.run.dir`` itself."""
+    if config is None or not config.get("resume") or any(_key(argument) == "hydra.run.dir" for argument in arguments):
+        return []
+    directory = str(checkpoint_run_directory(resolve_checkpoint_path(config.resume)))
+    quoted = directory.replace("\\", "\\\\").replace("'", "\\'")
+    return [f"hydra.run.dir='{quoted}'", "hydra.output_subdir=null"]
 
 
 def run_checked(main: Callable[[], None], program: str, config_name: str) -> None:
     """Check the command line (:func:`check_overrides`), then run the Hydra entry point ``main``."""
     try:
-        check_overrides(sys.argv[1:], config_name)
-    except ConfigError as error:
+        config = check_overrides(sys.argv[1:], config_name)
+        sys.argv += resume_in_place(sys.argv[1:], config)
+    except (ConfigError, CheckpointError) as error:
         print(f"{program}: error: {error}", file=sys.stderr)
         sys.exit(2)
     main()

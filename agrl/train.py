@@ -19,15 +19,11 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from agrl.cli import run_checked
+from agrl.cli import RESUMABLE_OVERRIDES, refuse_unresumable, run_checked
 from agrl.config import ConfigError, load_config
-from agrl.rl.checkpoint import CheckpointError, load_checkpoint, resolve_checkpoint_path
+from agrl.rl.checkpoint import CheckpointError, checkpoint_run_directory, load_checkpoint, resolve_checkpoint_path
 
 log = logging.getLogger("agrl.train")
-
-#: Values a resumed run may take from the command line; all else comes from the checkpoint.
-RESUMABLE_OVERRIDES = ("ppo.total_frames", "ppo.max_minutes", "ppo.compile_loss", "target_success", "progress",
-                       "device", "threads", "checkpoint_interval", "eval.")
 
 
 def _resume_config(cfg: DictConfig, reference: str) -> tuple[DictConfig, dict, Path]:
@@ -36,18 +32,12 @@ def _resume_config(cfg: DictConfig, reference: str) -> tuple[DictConfig, dict, P
     payload["_path"] = str(path)
     # The composed config carries the typed group schemas; the run's saved values go on top.
     saved = OmegaConf.merge(cfg, payload["config"])
-    given = [(override.split("=")[0].lstrip("+~"), override) for override in HydraConfig.get().overrides.task]
-    refused = [override for key, override in given if key != "resume" and not key.startswith(RESUMABLE_OVERRIDES)]
-    if refused:
-        raise ConfigError(f"{refused[0]} is not allowed with resume: a resumed run keeps its saved config; "
-                          f"only {', '.join(key + ('*' if key.endswith('.') else '') for key in RESUMABLE_OVERRIDES)}"
-                          " may be given")
-    overrides = [override for key, override in given if key.startswith(RESUMABLE_OVERRIDES)]
+    given = list(HydraConfig.get().overrides.task)
+    refuse_unresumable(given)  # checked before Hydra ran too (agrl.cli); here for callers of main() itself
+    overrides = [override for override in given if override.lstrip("+~").startswith(RESUMABLE_OVERRIDES)]
     saved = OmegaConf.merge(saved, OmegaConf.from_dotlist(overrides))
     saved.resume = str(reference)
-    # A checkpoint inside a run directory continues there (even if the directory was moved).
-    run_dir = path.parent.parent if path.parent.name == "checkpoints" else Path(payload.get("run_dir", path.parent))
-    return saved, payload, run_dir
+    return saved, payload, checkpoint_run_directory(path, payload)
 
 
 def run(cfg: DictConfig) -> dict:
@@ -60,6 +50,9 @@ def run(cfg: DictConfig) -> dict:
     config = load_config(cfg)
     trainer = Trainer(config, run_dir, resume_payload=payload)
     log.info("run directory: %s (tensorboard --logdir %s)", run_dir, run_dir)
+    if payload is not None:
+        log.info("resumed from %s after iteration %d (%d decisions)", payload["_path"],
+                 payload["counters"]["iteration"], payload["counters"]["frames"])
     summary = trainer.train()
     return summary
 

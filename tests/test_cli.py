@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from agrl.cli import check_overrides
+from agrl.cli import check_overrides, resume_in_place
 from agrl.config import ConfigError
 
 
@@ -39,11 +39,33 @@ def test_the_culprit_is_named_among_valid_overrides():
         check_overrides(["task=uniform", "speed=20", "ppo.epoch=3", "seed=2"], "config")
 
 
-def test_a_resumed_run_is_only_composed():
-    # Its values come from the checkpoint (the run itself refuses a missing file); only composition is checked.
-    check_overrides(["resume=no/such/run", "ppo.total_frames=1000"], "config")
+def test_a_resumed_run_takes_only_resumable_overrides(tiny_run):
+    # Its values come from the checkpoint: composition, the overrides it may take and the file's existence are checked.
+    check_overrides([f"resume={tiny_run.run_dir}", "ppo.total_frames=1000", "eval.interval=3"], "config")
     with pytest.raises(ConfigError, match=r"^ppo\.total_frame=1000 is not allowed"):
-        check_overrides(["resume=no/such/run", "ppo.total_frame=1000"], "config")
+        check_overrides([f"resume={tiny_run.run_dir}", "ppo.total_frame=1000"], "config")
+    with pytest.raises(ConfigError, match=r"^ppo\.num_envs=64 is not allowed with resume: .*only ppo\.total_frames"):
+        check_overrides([f"resume={tiny_run.run_dir}", "ppo.num_envs=64"], "config")
+    with pytest.raises(ConfigError, match=r"^resume: no/such/run: no such checkpoint file or run directory"):
+        check_overrides(["resume=no/such/run", "ppo.total_frames=1000"], "config")
+
+
+def test_a_named_checkpoint_must_exist(tmp_path):
+    check_overrides(["method=pretrained", "method.baseline=baseline"], "config")  # the shipped one
+    with pytest.raises(ConfigError, match=rf"^method\.baseline: {tmp_path}: run directory has no checkpoints/latest"):
+        check_overrides(["method=reuse", f"method.baseline={tmp_path}"], "config")
+    check_overrides(["method=scratch", f"method.baseline={tmp_path}"], "config")  # scratch reads no baseline
+    with pytest.raises(ConfigError, match=r"^checkpoint: no/such\.pt: no such checkpoint file"):
+        check_overrides(["checkpoint=no/such.pt"], "evaluate")
+
+
+def test_a_resume_goes_on_in_its_run_directory(tiny_run):
+    arguments = [f"resume={tiny_run.run_dir / 'checkpoints' / 'best.pt'}", "ppo.total_frames=1000"]
+    assert resume_in_place(arguments, check_overrides(arguments, "config")) == [
+        f"hydra.run.dir='{tiny_run.run_dir}'", "hydra.output_subdir=null"]
+    chosen = [*arguments, "hydra.run.dir=elsewhere"]  # the user's choice stands
+    assert resume_in_place(chosen, check_overrides(chosen, "config")) == []
+    assert resume_in_place(["seed=1"], check_overrides(["seed=1"], "config")) == []
 
 
 def test_adding_a_key_no_schema_reads_is_refused():

@@ -55,6 +55,7 @@ ONE_LINE_ERRORS = {
     "episodes-key": (("checkpoint=baseline", "episode=5"), ("episode=5 is not allowed", "no key 'episode'",
                                                             "episodes")),
     "zero-threads": (("checkpoint=baseline", "threads=0"), ("threads=0 is not allowed",)),
+    "missing-checkpoint": (("checkpoint=no/such.pt",), ("checkpoint: no/such.pt: no such checkpoint file",)),
 }
 
 

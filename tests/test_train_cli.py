@@ -197,6 +197,10 @@ ONE_LINE_ERRORS = {
     "unused-radius": (("task=uniform", "radius=500"), ("radius=500.0 is not allowed", "only task=curved")),
     "sweep-value": (("-m", "task=uniform", "speed=10,-20"), ("speed=-20.0 is not allowed",)),
     "sweep-without-m": (("seed=0,1",), ("seed=0,1 is not allowed: a sweep needs -m",)),
+    "missing-baseline": (("method=pretrained", "method.baseline=no/such.pt"),
+                         ("method.baseline: no/such.pt: no such checkpoint file or run directory; allowed: a "
+                          "checkpoint file, a run directory, or baseline (the shipped agent)",)),
+    "resume-missing": (("resume=no/such/run",), ("resume: no/such/run: no such checkpoint file or run directory",)),
 }
 
 
@@ -256,20 +260,17 @@ def bad_runs(run_cli, tiny_run, tiny_args, tmp_path_factory):
     # A copy of the shared tiny run to resume (the shared one stays read-only).
     resumable = directory / "resumable"
     shutil.copytree(tiny_run.run_dir, resumable)
-    missing = directory / "missing.pt"
     jobs = {
         "diverges": ("train", *tiny_args(), "method=pretrained", f"method.baseline={nan_baseline}",
                      f"hydra.run.dir={directory / 'diverges'}"),
         "reuse-without-baseline": ("train", *tiny_args(), "method=reuse", "method.baseline=null",
                                    f"hydra.run.dir={directory / 'no_baseline'}"),
-        "reuse-missing-baseline": ("train", *tiny_args(), "method=reuse", f"method.baseline={missing}",
-                                   f"hydra.run.dir={directory / 'missing_baseline'}"),
         "stride-over-budget": ("train", *tiny_args(), "method=reuse", "method.candidate_stride=31",
                                f"hydra.run.dir={directory / 'stride'}"),
         "resume-other-num-envs": ("train", f"resume={resumable}", "ppo.num_envs=64",
                                   f"hydra.run.dir={directory / 'resume_hydra'}"),
     }
-    return {"directory": directory, "missing": missing, "resumable": resumable, **run_cli.batch(jobs)}
+    return {"directory": directory, "resumable": resumable, **run_cli.batch(jobs)}
 
 
 def single_error_line(result, code: int) -> str:
@@ -290,9 +291,6 @@ def test_reuse_without_a_baseline_is_one_line(bad_runs):
     line = single_error_line(bad_runs["reuse-without-baseline"], 2)
     assert line == ("agrl.train: error: method.baseline=None is not allowed: "
                     "method=reuse needs a baseline checkpoint (a path, or 'baseline')")
-    line = single_error_line(bad_runs["reuse-missing-baseline"], 2)
-    assert line == (f"agrl.train: error: method.baseline: {bad_runs['missing']}: no such checkpoint file or run "
-                    "directory; allowed: a checkpoint file, a run directory, or baseline (the shipped agent)")
 
 
 def test_candidate_stride_beyond_the_decision_budget_is_one_line(bad_runs):
@@ -308,6 +306,31 @@ def test_resuming_with_another_num_envs_is_refused_and_leaves_the_run_alone(bad_
                     "device, threads, checkpoint_interval, eval.* may be given")
     latest = bad_runs["resumable"] / "checkpoints" / "latest.pt"
     assert latest.read_bytes() == (tiny_run.run_dir / "checkpoints" / "latest.pt").read_bytes()
+    assert not (bad_runs["directory"] / "resume_hydra").exists()  # refused before Hydra ran
+
+
+def test_a_resume_continues_in_its_run_directory_and_log(tiny_run, run_cli, tmp_path):
+    """Without hydra.run.dir, a resumed run writes nowhere else: Hydra's log goes on in the run's train.log, and
+    its .hydra/ record of the original command stays."""
+    import shutil
+
+    run, elsewhere = tmp_path / "run", tmp_path / "working_directory"
+    shutil.copytree(tiny_run.run_dir, run)
+    elsewhere.mkdir()
+    log = (run / "train.log").read_text()
+    record = {path.name: path.read_bytes() for path in (run / ".hydra").iterdir()}
+    frames = 6 * 512  # 2 iterations more
+    result = subprocess.run(run_cli.command("train", f"resume={run}", f"ppo.total_frames={frames}"), cwd=elsewhere,
+                            env=run_cli.environment(), capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert list(elsewhere.iterdir()) == []
+    assert load_checkpoint(run / "checkpoints" / "latest.pt")["counters"]["frames"] == frames
+    resumed_log = (run / "train.log").read_text()
+    assert resumed_log.startswith(log)
+    appended = resumed_log[len(log):]
+    assert f"resumed from {run / 'checkpoints' / 'latest.pt'} after iteration 4 (2048 decisions)" in appended
+    assert f"training stopped: reached ppo.total_frames={frames}" in appended
+    assert {path.name: path.read_bytes() for path in (run / ".hydra").iterdir()} == record
 
 
 @pytest.mark.usefixtures("torch_one_thread")

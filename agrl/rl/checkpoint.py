@@ -161,6 +161,16 @@ def resolve_checkpoint_path(reference: str | Path) -> Path:
     return path
 
 
+def checkpoint_run_directory(path: Path, payload: dict | None = None) -> Path:
+    """The run directory a checkpoint continues in: the folder above its ``checkpoints/`` (even if the run was
+    moved), else the run directory it records (``payload``, read from ``path`` if not given), else its folder."""
+    if path.parent.name == "checkpoints":
+        return path.parent.parent
+    if payload is None:
+        payload = load_checkpoint(path)
+    return Path(payload.get("run_dir", path.parent))
+
+
 SLIM_KEYS = ("actor", "critic", "config", "config_yaml", "counters")
 
 
