@@ -51,6 +51,7 @@ from collections.abc import Callable, Sequence
 
 import torch
 
+from agrl.cli import positive_int
 from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.parameters import GuidanceParameters
 from agrl.core.simulation import DecisionSimulator
@@ -335,35 +336,28 @@ def machine_record(device: torch.device) -> dict:
     }
 
 
-def _positive(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} is not allowed: a positive integer")
-    return value
-
-
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="python -m agrl.bench",
         description="Guidance decisions per second (150 integration steps each); one JSON line each.",
     )
-    parser.add_argument("--batch-sizes", type=_positive, nargs="+", default=None, metavar="N",
+    parser.add_argument("--batch-sizes", type=positive_int, nargs="+", default=None, metavar="N",
                         help=f"simulator batch sizes (default {' '.join(map(str, FULL_BATCH_SIZES))}; "
                              f"--quick: {' '.join(map(str, QUICK_BATCH_SIZES))})")
-    parser.add_argument("--env-batch", type=_positive, default=None, metavar="N",
+    parser.add_argument("--env-batch", type=positive_int, default=None, metavar="N",
                         help="batch of the TorchRL env measurement (default 4096; --quick: 64)")
-    parser.add_argument("--repeats", type=_positive, default=None,
+    parser.add_argument("--repeats", type=positive_int, default=None,
                         help="timings per measurement, the median is reported (default 5; --quick: 1)")
     parser.add_argument("--min-seconds", type=float, default=None,
                         help="minimum length of one timing (default 1.0; --quick: 0.0, a single call)")
     parser.add_argument("--modes", nargs="+", choices=MODES, default=None,
                         help="eager and/or compiled (torch.compile) simulation "
                              "(default both; --quick: eager)")
-    parser.add_argument("--threads", type=_positive, default=None,
+    parser.add_argument("--threads", type=positive_int, default=None,
                         help="torch.set_num_threads (default: torch's default, one per core). On a machine "
                              "that other processes keep busy, 1 gives stable figures; more threads then "
                              "wait for each other")
-    parser.add_argument("--guide-batch", type=_positive, default=None, metavar="N",
+    parser.add_argument("--guide-batch", type=positive_int, default=None, metavar="N",
                         help="rows of the guide's batched query (default 4096; --quick: 64)")
     parser.add_argument("--guide-formats", nargs="+", choices=("checkpoint", "onnx", "torch_export"),
                         default=["checkpoint"], help="guides to time (default: the baseline checkpoint)")

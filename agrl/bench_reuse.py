@@ -39,7 +39,8 @@ from collections.abc import Sequence
 
 import torch
 
-from agrl.bench import _positive, emit, machine_record
+from agrl.bench import emit, machine_record
+from agrl.cli import positive_int
 
 #: Upper bounds of the call sizes the row-decisions are counted by (rows per simulator call).
 CALL_SIZES = (32, 256, 1024)
@@ -84,7 +85,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                                      description="Seconds per policy-reuse relabelling of one collector batch.")
     parser.add_argument("overrides", nargs="*", default=None, metavar="KEY=VALUE",
                         help="Hydra overrides of the training config (default: task=uniform speed=50)")
-    parser.add_argument("--candidates", type=_positive, nargs="+", default=None, metavar="N",
+    parser.add_argument("--candidates", type=positive_int, nargs="+", default=None, metavar="N",
                         help="method.max_candidates values to time (default 8 16 32; --quick: 4 8)")
     parser.add_argument("--selection-factor", type=float, default=None, metavar="E",
                         help="e before each call, in [0, 1] (default 1: every episode is selected; with "
@@ -93,8 +94,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                         help="training iterations to run before the timed batch (default 0: the first batch)")
     parser.add_argument("--checkpoint", default=None,
                         help="a run checkpoint whose actor and critic are Z (default: untrained Z)")
-    parser.add_argument("--repeats", type=_positive, default=None, help="timed calls (default 3; --quick: 1)")
-    parser.add_argument("--threads", type=_positive, default=None, help="torch.set_num_threads")
+    parser.add_argument("--repeats", type=positive_int, default=None, help="timed calls (default 3; --quick: 1)")
+    parser.add_argument("--threads", type=positive_int, default=None, help="torch.set_num_threads")
     parser.add_argument("--quick", action="store_true",
                         help="smoke test: 64 aircraft x 16 decisions, eager simulator with a 0.1 s step")
     args = parser.parse_args(argv)

@@ -17,6 +17,7 @@ resume leaves no second directory behind.
 
 from __future__ import annotations
 
+import argparse
 import sys
 from collections.abc import Callable, Sequence
 
@@ -36,6 +37,17 @@ RESUMABLE_OVERRIDES = ("ppo.total_frames", "ppo.max_minutes", "ppo.compile_loss"
                        "device", "threads", "checkpoint_interval", "eval.")
 #: Keys whose value names a checkpoint (a file, a run directory or ``baseline``): it must exist.
 CHECKPOINT_KEYS = ("resume", "checkpoint", "method.baseline")
+
+
+def positive_int(text: str) -> int:
+    """An ``argparse`` type: an integer >= 1 (its error names the value and what is allowed)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = None
+    if value is None or value < 1:
+        raise argparse.ArgumentTypeError(f"{text} is not allowed: a positive integer")
+    return value
 
 
 def refuse_unresumable(overrides: Sequence[str]) -> None:

@@ -24,6 +24,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+import torch
+
+from agrl.cli import positive_int
 from agrl.config import ConfigError
 from agrl.rl.checkpoint import CheckpointError
 from agrl.rl.distill import distill
@@ -35,13 +38,17 @@ def main(argv: list[str] | None = None) -> int:
                         help="checkpoint, run directory or 'baseline'; several: their ensemble is the teacher")
     parser.add_argument("destination", help="the student checkpoint to write")
     parser.add_argument("--observation", default="absolute", choices=("relative", "absolute"))
-    parser.add_argument("--rounds", type=int, default=4, help="DAgger rounds (round 0 flies the teacher)")
-    parser.add_argument("--envs", type=int, default=2048, help="episodes flown in parallel per round")
-    parser.add_argument("--epochs", type=int, default=8, help="passes over all rounds' states per round")
+    parser.add_argument("--rounds", type=positive_int, default=4, help="DAgger rounds (round 0 flies the teacher)")
+    parser.add_argument("--envs", type=positive_int, default=2048, help="episodes flown in parallel per round")
+    parser.add_argument("--epochs", type=positive_int, default=8, help="passes over all rounds' states per round")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--threads", type=positive_int, default=None,
+                        help="torch's intra-op threads (default: torch's, one per core)")
     parser.add_argument("--init", metavar="CHECKPOINT",
                         help="start the student from this agent (same network and observation) instead of afresh")
     args = parser.parse_args(argv)
+    if args.threads is not None:
+        torch.set_num_threads(args.threads)
     try:
         summary = distill(args.teachers, args.destination, observation=args.observation, rounds=args.rounds,
                           envs=args.envs, epochs=args.epochs, seed=args.seed, init=args.init)
