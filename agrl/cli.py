@@ -198,7 +198,7 @@ def _check_checkpoint(key: str, reference: str) -> None:
 
 def resume_in_place(arguments: Sequence[str], config: DictConfig | None) -> list[str]:
     """Hydra overrides that make ``resume=<run>`` go on in the run's own directory: Hydra's run directory is the
-    run's, and Hydra writes no ``.hydra/`` there (the original command's record stays). None for a multirun, or
+    run's, and Hydra writes no ``.hydra/`` there (the original command's record stays). Nothing for a multirun, or
     if the command line sets ``hydra.run.dir`` itself."""
     if config is None or not config.get("resume") or any(_key(argument) == "hydra.run.dir" for argument in arguments):
         return []
