@@ -18,8 +18,10 @@ resume leaves no second directory behind.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -48,6 +50,19 @@ def positive_int(text: str) -> int:
     if value is None or value < 1:
         raise argparse.ArgumentTypeError(f"{text} is not allowed: a positive integer")
     return value
+
+
+def writable_folder(path: str | Path) -> Path:
+    """Create ``path``'s folder if needed; :class:`ConfigError` naming ``path`` if it cannot be written there
+    (checked before the work, so that an unwritable output does not end a long run with a traceback)."""
+    folder = Path(path).parent
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise ConfigError(f"{path}: cannot be written: {error.strerror or error}") from None
+    if not os.access(folder, os.W_OK):
+        raise ConfigError(f"{path}: cannot be written: {folder} is not writable")
+    return folder
 
 
 def refuse_unresumable(overrides: Sequence[str]) -> None:
@@ -184,6 +199,12 @@ def check_overrides(arguments: Sequence[str], config_name: str) -> DictConfig | 
             reference = OmegaConf.select(config, key, default=None)
             if reference and not (key == "method.baseline" and config.method.name == "scratch"):
                 _check_checkpoint(key, reference)
+        output = OmegaConf.select(config, "output_dir", default=None)  # the evaluation's: checked before its episodes
+        if output:
+            try:
+                writable_folder(Path(output) / "eval.json")
+            except ConfigError as error:
+                raise ConfigError(f"output_dir={output} is not allowed: {error}") from None
     return None if multirun else composed[0]
 
 
@@ -207,11 +228,19 @@ def resume_in_place(arguments: Sequence[str], config: DictConfig | None) -> list
     return [f"hydra.run.dir='{quoted}'", "hydra.output_subdir=null"]
 
 
-def run_checked(main: Callable[[], None], program: str, config_name: str) -> None:
-    """Check the command line (:func:`check_overrides`), then run the Hydra entry point ``main``."""
+def run_checked(main: Callable[[], None], program: str, config_name: str,
+                inputs: Callable[[object], None] | None = None) -> None:
+    """Check the command line (:func:`check_overrides`), then run the Hydra entry point ``main``.
+
+    ``inputs(config)``, given the validated config of a run that does not resume, loads the files the run will read
+    (a baseline, a checkpoint) and raises :class:`ConfigError` or :class:`CheckpointError` if one does not fit:
+    that too stops before Hydra writes anything.
+    """
     try:
         config = check_overrides(sys.argv[1:], config_name)
         sys.argv += resume_in_place(sys.argv[1:], config)
+        if inputs is not None and config is not None and not config.get("resume"):
+            inputs(load_config(config))
     except (ConfigError, CheckpointError) as error:
         print(f"{program}: error: {error}", file=sys.stderr)
         sys.exit(2)

@@ -26,30 +26,34 @@ import sys
 
 import torch
 
-from agrl.cli import positive_int
+from agrl.cli import positive_int, writable_folder
 from agrl.config import ConfigError
 from agrl.rl.checkpoint import CheckpointError
 from agrl.rl.distill import distill
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m agrl.distill", description=__doc__.splitlines()[0])
+    summary = " ".join(__doc__.split("\n\n")[0].split())  # the docstring's first paragraph
+    parser = argparse.ArgumentParser(prog="python -m agrl.distill", description=summary,
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("teachers", nargs="+", metavar="TEACHER",
                         help="checkpoint, run directory or 'baseline'; several: their ensemble is the teacher")
     parser.add_argument("destination", help="the student checkpoint to write")
-    parser.add_argument("--observation", default="absolute", choices=("relative", "absolute"))
+    parser.add_argument("--observation", default="absolute", choices=("relative", "absolute"),
+                        help="the student's input: equation 4's (absolute) or agrl's (relative)")
     parser.add_argument("--rounds", type=positive_int, default=4, help="DAgger rounds (round 0 flies the teacher)")
     parser.add_argument("--envs", type=positive_int, default=2048, help="episodes flown in parallel per round")
     parser.add_argument("--epochs", type=positive_int, default=8, help="passes over all rounds' states per round")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=positive_int, default=None,
-                        help="torch's intra-op threads (default: torch's, one per core)")
+                        help="torch's intra-op threads; None: torch's default, one per core")
     parser.add_argument("--init", metavar="CHECKPOINT",
                         help="start the student from this agent (same network and observation) instead of afresh")
     args = parser.parse_args(argv)
     if args.threads is not None:
         torch.set_num_threads(args.threads)
     try:
+        writable_folder(args.destination)  # before the rounds, not after them
         summary = distill(args.teachers, args.destination, observation=args.observation, rounds=args.rounds,
                           envs=args.envs, epochs=args.epochs, seed=args.seed, init=args.init)
     except (ConfigError, CheckpointError) as error:

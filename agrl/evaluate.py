@@ -17,7 +17,7 @@ import torch
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
-from agrl.cli import run_checked
+from agrl.cli import run_checked, writable_folder
 from agrl.config import (
     ConfigError,
     TaskConfig,
@@ -50,6 +50,8 @@ def evaluate(cfg) -> dict[str, Any]:
     device = torch.device(cfg.device)
     if cfg.threads is not None:
         torch.set_num_threads(cfg.threads)
+    output = Path(cfg.output_dir or HydraConfig.get().runtime.output_dir)
+    writable_folder(output / "eval.json")  # before the episodes, not after them
     actor, saved, path = load_agent(cfg.checkpoint, device)
     task = cfg.task if cfg.task is not None else validated_section(TaskConfig, saved["task"])
     params = saved_guidance_parameters(saved, task)
@@ -60,7 +62,6 @@ def evaluate(cfg) -> dict[str, Any]:
     summary["ms_per_instruction"] = instruction_latency_ms(env, actor)
     summary.update({"checkpoint": str(path), "task": task.name, "speed": task.speed, "radius": task.radius,
                     "seed": cfg.seed, "trained_task": saved["task"]["name"], "method": saved["method"]["name"]})
-    output = Path(cfg.output_dir or HydraConfig.get().runtime.output_dir)
     write_evaluation(output, summary, records)
     if cfg.trajectories:
         plot_trajectories(records, output / "trajectories.png", params.simulation.airspace, cfg.trajectories,
@@ -80,4 +81,4 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
-    run_checked(main, "agrl.evaluate", "evaluate")
+    run_checked(main, "agrl.evaluate", "evaluate", lambda config: load_agent(config.checkpoint))

@@ -1,7 +1,10 @@
 """``python -m agrl.export SOURCE [SOURCE ...] DESTINATION [--format checkpoint|onnx|torch_export]``: ship a
 trained agent.
 
-- ``checkpoint`` (default): a slim checkpoint (actor, critic, resolved config and counters; no
+The format follows DESTINATION's suffix (``.onnx``, ``.pt2``, else ``checkpoint``) unless ``--format`` is given;
+an existing DESTINATION is replaced only with ``--force``.
+
+- ``checkpoint``: a slim checkpoint (actor, critic, resolved config and counters; no
   optimiser, RNG or collector state), e.g. to ship a baseline usable as ``method.baseline=<file>``;
   ``--evaluation eval.json`` embeds an evaluation summary. Several sources: one agent whose weights are
   their average (:func:`agrl.rl.checkpoint.average_agents`, for the seeds of one fine-tune);
@@ -74,20 +77,46 @@ def export_onnx(source: str | Path, destination: str | Path) -> Path:
     return destination
 
 
+def _format_of(destination: str) -> str:
+    """The format a destination's suffix names (``.onnx``, ``.pt2``), else ``checkpoint``."""
+    suffix = Path(destination).suffix
+    return next((name for name, known in SUFFIXES.items() if known == suffix), "checkpoint")
+
+
+def _read_evaluation(path: str) -> dict:
+    try:
+        with open(path) as file:
+            evaluation = json.load(file)
+    except (OSError, json.JSONDecodeError) as error:
+        raise CheckpointError(f"--evaluation={path}: not a readable eval.json ({error})") from None
+    if not isinstance(evaluation, dict):
+        raise CheckpointError(f"--evaluation={path}: not an evaluation summary (a JSON object, as eval.json)")
+    return evaluation
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m agrl.export", description=__doc__.splitlines()[0])
+    summary = " ".join(__doc__.split("\n\n")[0].split())  # the docstring's first paragraph
+    parser = argparse.ArgumentParser(prog="python -m agrl.export", description=summary)
     parser.add_argument("sources", nargs="+", metavar="source",
                         help="a checkpoint file, a run directory or 'baseline'; several (format checkpoint): one agent "
                              "with their averaged weights")
     parser.add_argument("destination", help="where to write the export (.onnx for onnx, .pt2 for torch_export)")
-    parser.add_argument("--format", choices=FORMATS, default="checkpoint",
-                        help="checkpoint (slim checkpoint, default), onnx or torch_export")
+    parser.add_argument("--format", choices=FORMATS, default=None,
+                        help="checkpoint (a slim checkpoint), onnx or torch_export; default: onnx for a .onnx "
+                             "destination, torch_export for .pt2, else checkpoint")
     parser.add_argument("--evaluation", help="an eval.json to embed (format=checkpoint: its summary travels with "
                                              "the agent)")
+    parser.add_argument("--force", action="store_true", help="replace the destination if it exists")
     args = parser.parse_args(argv)
-    suffix = SUFFIXES.get(args.format)
-    if suffix and Path(args.destination).suffix != suffix:
-        parser.error(f"destination={args.destination!r} is not allowed: format={args.format} writes a {suffix} file")
+    inferred = _format_of(args.destination)
+    args.format = args.format or inferred
+    if args.format != inferred:
+        expected = SUFFIXES.get(args.format)
+        writes = f"a {expected} file" if expected else f"a checkpoint, not a {Path(args.destination).suffix} file"
+        parser.error(f"destination={args.destination!r} is not allowed: format={args.format} writes {writes}")
+    if Path(args.destination).exists() and not args.force:
+        parser.error(f"destination={args.destination!r} is not allowed: it exists (a run's checkpoint, say); give "
+                     "--force to replace it, or another path")
     if args.evaluation and args.format != "checkpoint":
         parser.error(f"--evaluation={args.evaluation!r} is not allowed: only with --format checkpoint")
     if len(args.sources) > 1 and args.format != "checkpoint":
@@ -100,15 +129,12 @@ def main(argv: list[str] | None = None) -> int:
         elif args.format == "torch_export":
             path = export_torch(source, args.destination)
         else:
-            extra = {}
-            if args.evaluation:
-                with open(args.evaluation) as file:
-                    extra["evaluation"] = json.load(file)
+            extra = {"evaluation": _read_evaluation(args.evaluation)} if args.evaluation else {}
             if len(args.sources) > 1:
                 path = average_agents(args.sources, args.destination, **extra)
             else:
                 path = export_agent(source, args.destination, **extra)
-    except (CheckpointError, OSError, json.JSONDecodeError) as error:
+    except (CheckpointError, OSError) as error:
         print(f"agrl.export: error: {error}", file=sys.stderr)
         return 2
     print(path)

@@ -23,6 +23,8 @@ from typing import Any
 from omegaconf import OmegaConf
 
 import agrl.config  # noqa: F401  (registers the resolver used in saved configs)
+from agrl.cli import writable_folder
+from agrl.config import ConfigError
 from agrl.plots import plot_success_against_time
 
 PAPER_TABLE3 = {  # success rate, average number of control times, average computational time (ms)
@@ -160,12 +162,17 @@ def table3(runs: list[dict[str, Any]], independent: tuple[str, ...] = ()) -> str
     its order, then ``switch`` rows by cost. ``independent`` names evaluation folders inside each run (see
     :func:`independent_evaluation`); each adds a column of success and instructions on those episodes."""
     groups: dict[str, list] = defaultdict(list)
-    switch_costs: dict[str, float] = {}  # the switch rows' order
+    order: dict[str, tuple] = {}  # rows: the paper's in its order, then by method, switch cost and name
     for run in runs:
-        label = reward_label(run["config"])
+        if run["config"]["task"]["name"] != "fixed":
+            continue  # Table 3 is the fixed destination (main() says how many runs were left out)
+        method = method_of(run)
+        label = reward_label(run["config"]) + ("" if method == "scratch" else f", {METHOD_LABELS[method].lower()}")
         groups[label].append(run)
-        if run["config"]["reward"]["name"] == "switch":
-            switch_costs[label] = float(run["config"]["reward"].get("switch_cost", 0.0))
+        paper_row = list(PAPER_TABLE3).index(label) if label in PAPER_TABLE3 else len(PAPER_TABLE3)
+        reward = run["config"]["reward"]
+        cost = float(reward.get("switch_cost", 0.0)) if reward["name"] == "switch" else 0.0
+        order[label] = (paper_row, METHODS.index(method), cost, label)
     extra = "".join(f" {folder}: success, instructions |" for folder in independent)
     lines = [
         "| Reward | Seeds | Success rate | Instructions / episode | ms / instruction | Iterations to 95 % eval | "
@@ -173,8 +180,7 @@ def table3(runs: list[dict[str, Any]], independent: tuple[str, ...] = ()) -> str
         + " Paper: success, instructions, ms |",
         "|---|---|---|---|---|---|---|---|---|" + "---|" * len(independent) + "---|",
     ]
-    switch_rows = sorted(switch_costs, key=lambda label: (switch_costs[label], label))
-    for name in (*[name for name in PAPER_TABLE3 if name in groups], *switch_rows):
+    for name in sorted(groups, key=order.get):
         group = groups[name]
         success = [run["eval"]["success_rate"] * 100 for run in group]
         instructions = [run["eval"]["instructions_per_episode"] for run in group]
@@ -248,7 +254,7 @@ def moving_tables(runs: list[dict[str, Any]], figure_dir: Path | None, figure_su
                 name = f"{kind}_{value:g}{figure_suffix}.png"
                 plot_success_against_time(curves, figure_dir / name, key=SUCCESS_KEY,
                                           title=f"{kind} destination, {label.lower()} {value:g} {unit}")
-                out.append(f"![{kind} {value:g}](figures/{name})")
+                out.append(f"![{kind} {value:g}]({figure_dir.name}/{name})")  # the page beside the folder
             out.append("")
     out.append(targets_table(groups))
     return "\n".join(out)
@@ -332,7 +338,7 @@ def runs_table(runs: list[dict[str, Any]], root: Path, times: list[float]) -> st
         return "-" if value is None else fmt.format(value)
 
     lines = ["| run | evaluation before training | best evaluation by " + " / ".join(f"{t:g}" for t in times)
-             + " s | s to 95 % | final success (1000) | instructions | iterations "
+             + " s | s to 95 % | final success (episodes) | instructions | iterations "
              "| median s / iteration (relabelling) | first iteration s (relabelling) |",
              "|---|---:|---|---:|---:|---:|---:|---:|---:|"]
     for run in sorted(runs, key=lambda run: str(run["dir"])):
@@ -350,9 +356,10 @@ def runs_table(runs: list[dict[str, Any]], root: Path, times: list[float]) -> st
         start = evaluations[0][1] * 100 if evaluations else None
         best_text = " / ".join(cell(None if value is None else value * 100, "{:.0f}") for value in best)
         final = run["eval"]
+        episodes = f" ({final['episodes']})" if "episodes" in final else ""
         lines.append(
             f"| {Path(run['dir']).relative_to(root)} | {cell(start, '{:.1f} %')} | {best_text} % "
-            f"| {cell(reached_seconds, '{:.0f}')} | {final['success_rate'] * 100:.1f} % "
+            f"| {cell(reached_seconds, '{:.0f}')} | {final['success_rate'] * 100:.1f} %{episodes} "
             f"| {final['instructions_per_episode']:.1f} "
             f"| {len(iterations)} | {cell(statistics.median(later) if later else None, '{:.2f}')} "
             f"({cell(statistics.median(relabel) if relabel else None, '{:.2f}')}) "
@@ -372,12 +379,30 @@ def main(argv: list[str] | None = None) -> int:
                         help="evaluation folders inside each run (python -m agrl.evaluate ... hydra.run.dir=<run>/"
                              "FOLDER), one column each of success and instructions (table3)")
     args = parser.parse_args(argv)
+    if not args.root.is_dir():
+        parser.error(f"{args.root}: no such folder; allowed: a folder containing finished runs")
+    if any(seconds <= 0 for seconds in args.times):
+        parser.error(f"--times {' '.join(f'{seconds:g}' for seconds in args.times)} is not allowed: seconds > 0")
+    try:
+        if args.figures is not None:
+            writable_folder(args.figures / "figure.png")  # before the tables, not after them
+    except ConfigError as error:
+        print(f"agrl.report: error: --figures: {error}", file=sys.stderr)
+        return 2
     runs = find_runs(args.root)
     if not runs:
         print(f"agrl.report: error: no finished runs (eval/eval.json) below {args.root}", file=sys.stderr)
         return 2
     if args.kind == "table3":
-        print(table3(runs, tuple(args.independent)))
+        fixed = [run for run in runs if run["config"]["task"]["name"] == "fixed"]
+        if not fixed:
+            print(f"agrl.report: error: no finished fixed-destination runs below {args.root} (Table 3 is the fixed "
+                  "destination)", file=sys.stderr)
+            return 2
+        if len(fixed) < len(runs):
+            print(f"agrl.report: {len(runs) - len(fixed)} runs of other tasks left out: Table 3 is the fixed "
+                  "destination", file=sys.stderr)
+        print(table3(fixed, tuple(args.independent)))
     elif args.kind == "moving":
         print(moving_tables(runs, args.figures, args.figure_suffix))
     else:

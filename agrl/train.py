@@ -76,5 +76,17 @@ def main(cfg: DictConfig) -> None:
     print(json.dumps(summary))
 
 
+def check_inputs(config) -> None:
+    """Load the baseline a run starts from as the run will (agrl.cli.run_checked calls this before Hydra runs)."""
+    if config.method.name == "scratch":
+        return
+    from agrl.rl.models import make_actor, make_critic
+    from agrl.rl.trainer import load_baseline
+
+    agent = config.agent
+    load_baseline(config, "cpu", make_actor(agent.actor_hidden, agent.activation, "cpu", agent.observation),
+                  make_critic(agent.critic_hidden, agent.activation, "cpu", agent.observation))
+
+
 if __name__ == "__main__":
-    run_checked(main, "agrl.train", "config")
+    run_checked(main, "agrl.train", "config", check_inputs)

@@ -39,3 +39,11 @@ def test_counts_below_one_are_refused_naming_the_value(tmp_path, capsys, option)
     assert exited.value.code == 2
     assert capsys.readouterr().err.strip().splitlines()[-1] == (
         f"python -m agrl.distill: error: argument {option}: 0 is not allowed: a positive integer")
+
+
+def test_an_unwritable_destination_is_refused_before_the_rounds(tmp_path, capsys):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    assert main(["baseline", str(blocker / "student.pt")]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"agrl.distill: error: {blocker / 'student.pt'}: cannot be written: Not a directory")

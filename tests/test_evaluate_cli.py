@@ -56,6 +56,9 @@ ONE_LINE_ERRORS = {
                                                             "episodes")),
     "zero-threads": (("checkpoint=baseline", "threads=0"), ("threads=0 is not allowed",)),
     "missing-checkpoint": (("checkpoint=no/such.pt",), ("checkpoint: no/such.pt: no such checkpoint file",)),
+    "unwritable-output": (("checkpoint=baseline", "output_dir=/dev/null/evaluation"),
+                          ("output_dir=/dev/null/evaluation is not allowed: /dev/null/evaluation/eval.json: cannot be "
+                           "written",)),
 }
 
 
@@ -137,6 +140,7 @@ def test_corrupt_checkpoint_exits_2_with_one_line(cli_runs):
     assert lines[0].startswith("agrl.evaluate: error:")
     assert str(cli_runs["truncated_file"]) in lines[0]
     assert "not a readable checkpoint" in lines[0]
+    assert not (cli_runs["directory"] / "truncated").exists()  # read before Hydra runs: nothing written
 
 
 def test_evaluating_a_best_checkpoint_file(tiny_run, compose_evaluate, tmp_path):

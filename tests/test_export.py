@@ -21,9 +21,11 @@ SINGLE_QUERIES = 500
 def exports(tmp_path_factory):
     folder = tmp_path_factory.mktemp("exports")
     paths = {"checkpoint": folder / "slim.pt", "onnx": folder / "guide.onnx", "torch_export": folder / "guide.pt2"}
-    for format_name, path in paths.items():
-        assert main(["baseline", str(path), "--format", format_name]) == 0
-        assert path.is_file()
+    # The format follows the destination's suffix unless given (torch_export is given here, the others inferred).
+    assert main(["baseline", str(paths["checkpoint"])]) == 0
+    assert main(["baseline", str(paths["onnx"])]) == 0
+    assert main(["baseline", str(paths["torch_export"]), "--format", "torch_export"]) == 0
+    assert all(path.is_file() for path in paths.values())
     return paths
 
 
@@ -97,3 +99,12 @@ def test_cli_arguments_are_checked(tmp_path):
         main(["baseline", str(tmp_path / "g.onnx"), "--format", "onnx", "--evaluation", "eval.json"])
     with pytest.raises(SystemExit):
         main(["baseline", str(tmp_path / "g.onnx"), "--format", "tflite"])
+
+
+def test_a_suffix_of_another_format_is_refused(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exited:
+        main(["baseline", str(tmp_path / "g.onnx"), "--format", "checkpoint"])
+    assert exited.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1].endswith(
+        "is not allowed: format=checkpoint writes a checkpoint, not a .onnx file")
+    assert not (tmp_path / "g.onnx").exists()

@@ -117,3 +117,32 @@ def test_averaging_agents_of_different_networks_is_one_line(tiny_run, tmp_path, 
     with pytest.raises(SystemExit):
         main([str(source), str(source), str(tmp_path / "soup.onnx"), "--format", "onnx"])
     assert "2 sources are not allowed with --format onnx" in capsys.readouterr().err
+
+
+def test_an_existing_destination_is_kept_unless_forced(tmp_path, capsys):
+    from agrl.export import main
+
+    destination = tmp_path / "latest.pt"
+    destination.write_bytes(b"a run's checkpoint")
+    with pytest.raises(SystemExit) as exited:
+        main(["baseline", str(destination)])
+    assert exited.value.code == 2
+    assert capsys.readouterr().err.strip().splitlines()[-1] == (
+        f"python -m agrl.export: error: destination={str(destination)!r} is not allowed: it exists (a run's "
+        "checkpoint, say); give --force to replace it, or another path")
+    assert destination.read_bytes() == b"a run's checkpoint"
+    assert main(["baseline", str(destination), "--force"]) == 0
+    assert set(load_checkpoint(destination)) >= {"actor", "critic", "config"}
+
+
+@pytest.mark.parametrize("content", [None, "not json", "[1, 2]"])
+def test_a_bad_evaluation_file_is_one_line_naming_the_option(tmp_path, capsys, content):
+    from agrl.export import main
+
+    evaluation = tmp_path / "eval.json"
+    if content is not None:
+        evaluation.write_text(content)
+    assert main(["baseline", str(tmp_path / "slim.pt"), "--evaluation", str(evaluation)]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"agrl.export: error: --evaluation={evaluation}: not ")
+    assert not (tmp_path / "slim.pt").exists()

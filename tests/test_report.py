@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import pytest
 from omegaconf import OmegaConf
 
 from agrl.report import find_runs, main, median_minutes_to, method_of, moving_tables, read_metrics, run_time_to_reach
@@ -72,6 +73,27 @@ def test_targets_compare_reuse_with_the_other_methods(tmp_path):
 def test_an_empty_folder_is_a_one_line_error(tmp_path, capsys):
     assert main(["moving", str(tmp_path)]) == 2
     assert str(tmp_path) in capsys.readouterr().err
+
+
+def test_a_missing_folder_and_bad_times_are_refused_naming_them(tmp_path, capsys):
+    for arguments, message in (
+            (["runs", str(tmp_path / "nowhere")],
+             f"{tmp_path / 'nowhere'}: no such folder; allowed: a folder containing finished runs"),
+            (["runs", str(tmp_path), "--times", "60", "-5"], "--times 60 -5 is not allowed: seconds > 0")):
+        with pytest.raises(SystemExit) as exited:
+            main(arguments)
+        assert exited.value.code == 2
+        assert capsys.readouterr().err.strip().splitlines()[-1] == f"python -m agrl.report: error: {message}"
+
+
+def test_figures_are_linked_from_their_own_folder_and_checked_first(tmp_path, capsys):
+    make_run(tmp_path / "runs", "r", "reuse", 20, 0.97, [(0, 0.0), (120, 0.96)])
+    text = moving_tables(find_runs(tmp_path / "runs"), figure_dir=tmp_path / "figs")
+    assert "![uniform 20](figs/uniform_20.png)" in text and (tmp_path / "figs" / "uniform_20.png").is_file()
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    assert main(["moving", str(tmp_path / "runs"), "--figures", str(blocker / "figs")]) == 2
+    assert capsys.readouterr().err.strip().startswith(f"agrl.report: error: --figures: {blocker / 'figs'}")
 
 
 def test_a_method_not_run_shows_as_a_dash_not_a_comparison(tmp_path):
@@ -163,6 +185,22 @@ def test_table3_gives_each_switch_cost_its_row_and_independent_evaluations_their
     assert rows["both"][-2:] == ["99.70 %, 18.50 (1/1)", "99.5 %, 7.22, 2.91 ms"]
 
 
+def test_table3_is_the_fixed_destination_with_each_method_its_row(tmp_path, capsys):
+    evaluation = {"success_rate": 0.99, "instructions_per_episode": 7.0, "ms_per_instruction": 0.3}
+    curve = [(0, 0.1), (60, 0.999)]
+    make_reward_run(tmp_path, "k01", "switch", evaluation, curve, switch_cost=0.1)
+    tuned = make_reward_run(tmp_path, "k03_tuned", "switch", evaluation, curve, switch_cost=0.3)
+    config = OmegaConf.load(tuned / ".hydra" / "config.yaml")
+    config.method.name = "pretrained"
+    OmegaConf.save(config, tuned / ".hydra" / "config.yaml")
+    make_run(tmp_path, "moving", "reuse", 50, 0.9, [(0, 0.0), (60, 0.9)])  # another task: not a Table 3 row
+    assert main(["table3", str(tmp_path)]) == 0
+    captured = capsys.readouterr()
+    rows = [line.split(" | ")[0].lstrip("| ") for line in captured.out.strip().splitlines()[2:]]
+    assert rows == ["switch (k = 0.1)", "switch (k = 0.3), pre-trained algorithm"]
+    assert captured.err.strip() == "agrl.report: 1 runs of other tasks left out: Table 3 is the fixed destination"
+
+
 def test_metrics_rows_come_back_from_tensorboard_one_per_step(tmp_path):
     run = tmp_path / "run"
     # An older run's initial evaluation (step 0) carried no iteration or wall time; a resumed session repeats
@@ -198,7 +236,7 @@ def test_the_runs_table_gives_each_runs_curve_and_costs(tmp_path, capsys):
     # A pre-trained run logs no relabelling time: its cells say so ("-"), not a median of zeros.
     plain = write_run(tmp_path, "pretrained_s0",
                       {"task": {"name": "uniform", "speed": 50.0}, "method": {"name": "pretrained"}},
-                      {"success_rate": 0.995, "instructions_per_episode": 10.0})
+                      {"success_rate": 0.995, "instructions_per_episode": 10.0, "episodes": 16})
     write_scalars(plain, [
         {"frames": 0, "train/iteration": 0, "time/wall_time": 0.0, "eval/success_rate": 0.9},
         {"frames": 100, "train/iteration": 1, "time/wall_time": 5.0, "time/iteration_seconds": 4.0},
@@ -207,7 +245,8 @@ def test_the_runs_table_gives_each_runs_curve_and_costs(tmp_path, capsys):
     assert main(["runs", str(tmp_path), "--times", "60", "120"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     assert lines[0].startswith("| run | evaluation before training | best evaluation by 60 / 120 s | s to 95 % |")
-    assert lines[2] == "| pretrained_s0 | 90.0 % | 99 / 99 % | 7 | 99.5 % | 10.0 | 2 | 1.50 (-) | 4.0 (-) |"
+    assert "| final success (episodes) |" in lines[0]
+    assert lines[2] == "| pretrained_s0 | 90.0 % | 99 / 99 % | 7 | 99.5 % (16) | 10.0 | 2 | 1.50 (-) | 4.0 (-) |"
     # Best by 60 s: 60 % (the 97 % came at 70 s); medians over iterations 2-3: 2.5 s and 0.375 s of relabelling.
     assert lines[3] == "| reuse_s0 | 0.4 % | 60 / 97 % | 70 | 98.7 % | 11.8 | 3 | 2.50 (0.38) | 8.0 (2.5) |"
 

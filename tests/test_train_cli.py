@@ -201,6 +201,9 @@ ONE_LINE_ERRORS = {
                          ("method.baseline: no/such.pt: no such checkpoint file or run directory; allowed: a "
                           "checkpoint file, a run directory, or baseline (the shipped agent)",)),
     "resume-missing": (("resume=no/such/run",), ("resume: no/such/run: no such checkpoint file or run directory",)),
+    "baseline-other-networks": (("method=pretrained", "method.baseline=baseline", "agent.actor_hidden=[64,64]"),
+                                ("fixed_baseline.pt: the actor network does not match this configuration",
+                                 "module.0.module.0.weight (64, 23) here, (128, 23) in the file")),
 }
 
 
@@ -214,6 +217,8 @@ def bad_invocations(run_cli, tmp_path_factory):
     jobs = {case: ("train", *arguments, f"hydra.run.dir={directory / case}", f"hydra.sweep.dir={directory / case}")
             for case, (arguments, _) in ONE_LINE_ERRORS.items()}
     jobs["resume-random-bytes"] = ("train", f"resume={bad}", f"hydra.run.dir={directory / 'run'}")
+    jobs["baseline-random-bytes"] = ("train", "method=pretrained", f"method.baseline={bad}",
+                                     f"hydra.run.dir={directory / 'baseline-random-bytes'}")
     return {"bad_file": bad, "directory": directory, **run_cli.batch(jobs)}
 
 
@@ -229,6 +234,14 @@ def test_bad_command_line_exits_2_with_one_line_naming_it(bad_invocations, case)
     for fragment in ONE_LINE_ERRORS[case][1]:
         assert fragment in lines[0]
     assert not (bad_invocations["directory"] / case).exists()
+
+
+def test_a_baseline_that_is_not_a_checkpoint_stops_before_hydra_runs(bad_invocations):
+    result = bad_invocations["baseline-random-bytes"]
+    assert result.returncode == 2, result.stderr[-3000:]
+    assert error_lines(result.stderr) == [f"agrl.train: error: method.baseline: {bad_invocations['bad_file']}: not a "
+                                          "readable checkpoint (corrupt or truncated?)"]
+    assert not (bad_invocations["directory"] / "baseline-random-bytes").exists()
 
 
 def test_resume_from_corrupt_checkpoint_exits_2_naming_the_file(bad_invocations):

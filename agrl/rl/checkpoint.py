@@ -123,11 +123,14 @@ def load_checkpoint(path: str | Path, required: tuple[str, ...] = ("actor",)) ->
 
 
 def _layout_differences(expected: dict[str, torch.Tensor], found: dict[str, torch.Tensor]) -> str:
-    """The first few parameters whose name or shape differ between two state dicts ("" if none), for one line."""
+    """The first few parameters whose name or shape differ between two state dicts ("" if none), for one line:
+    each with its shape in the configuration and in the file."""
     expected_shapes = {name: tuple(tensor.shape) for name, tensor in expected.items()}
     found_shapes = {name: tuple(tensor.shape) for name, tensor in found.items()}
-    differences = sorted(set(expected_shapes.items()) ^ set(found_shapes.items()))
-    return "; ".join(f"{name} {shape}" for name, shape in differences[:4])
+    differing = sorted(name for name in expected_shapes.keys() | found_shapes.keys()
+                       if expected_shapes.get(name) != found_shapes.get(name))
+    return "; ".join(f"{name} {expected_shapes.get(name, 'absent')} here, {found_shapes.get(name, 'absent')} "
+                     "in the file" for name in differing[:4])
 
 
 def load_module_state(module: torch.nn.Module, state: dict[str, torch.Tensor], path: Path, what: str) -> None:

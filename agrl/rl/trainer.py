@@ -27,6 +27,7 @@ from tensordict import TensorDictBase
 from torchrl.collectors import Collector, MultiSyncCollector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
+from torchrl.modules import ProbabilisticActor, ValueOperator
 
 from agrl.config import TrainConfig, task_label, to_guidance_parameters
 from agrl.core.observation import LEGACY_OBSERVATION
@@ -76,6 +77,32 @@ class Counters:
     best_success: float = -1.0
     curriculum_scale: float = 1.0  # fraction of the start box used for training episodes
     next_evaluation_time: float = 0.0  # s of training; the wall-clock evaluation schedule (eval.interval_seconds)
+
+
+def load_baseline(cfg: TrainConfig, device: torch.device | str, actor: ProbabilisticActor, critic: ValueOperator):
+    """``(B, path, B's observation)`` for ``cfg.method.baseline``: B is the frozen baseline actor. For pretrained
+    (and reuse from B) Z's ``actor`` and ``critic`` start from B's weights. A file that does not fit (unreadable,
+    another observation, other network shapes) is a :class:`CheckpointError` naming it."""
+    reference = cfg.method.baseline
+    try:
+        path = resolve_checkpoint_path(reference)
+        payload = load_checkpoint(path, required=("actor", "critic"))
+    except CheckpointError as error:
+        raise CheckpointError(f"method.baseline: {error}") from None
+    baseline_agent = payload.get("config", {}).get("agent", {})
+    observation = baseline_agent.get("observation", LEGACY_OBSERVATION)
+    if cfg.method.name == "pretrained" or cfg.method.start_from_baseline:
+        if observation != cfg.agent.observation:
+            raise CheckpointError(
+                f"{path}: agent.observation={cfg.agent.observation} is not allowed when starting from this "
+                f"baseline: it was trained with observation={observation}; train Z with the same"
+            )
+        load_module_state(actor, payload["actor"], path, "actor")
+        load_module_state(critic, payload["critic"], path, "critic")
+    baseline = make_actor(baseline_agent.get("actor_hidden", cfg.agent.actor_hidden),
+                          baseline_agent.get("activation", cfg.agent.activation), device, observation)
+    load_module_state(baseline, payload["actor"], path, "baseline actor")
+    return baseline.eval().requires_grad_(False), path, observation
 
 
 class Trainer:
@@ -155,27 +182,9 @@ class Trainer:
 
     def _load_baseline(self, reference: str):
         """The frozen baseline actor B; pretrained (and reuse from B) also start Z's networks from it."""
-        try:
-            path = resolve_checkpoint_path(reference)
-            payload = load_checkpoint(path, required=("actor", "critic"))
-        except CheckpointError as error:
-            raise CheckpointError(f"method.baseline: {error}") from None
-        baseline_agent = payload.get("config", {}).get("agent", {})
-        self.baseline_observation = baseline_agent.get("observation", LEGACY_OBSERVATION)
-        if self.cfg.method.name == "pretrained" or self.cfg.method.start_from_baseline:
-            if self.baseline_observation != self.cfg.agent.observation:
-                raise CheckpointError(
-                    f"{path}: agent.observation={self.cfg.agent.observation} is not allowed when starting from this "
-                    f"baseline: it was trained with observation={self.baseline_observation}; train Z with the same"
-                )
-            load_module_state(self.actor, payload["actor"], path, "actor")
-            load_module_state(self.critic, payload["critic"], path, "critic")
-        actor = make_actor(baseline_agent.get("actor_hidden", self.cfg.agent.actor_hidden),
-                           baseline_agent.get("activation", self.cfg.agent.activation), self.device,
-                           self.baseline_observation)
-        load_module_state(actor, payload["actor"], path, "baseline actor")
-        self.baseline_path = path
-        return actor.eval().requires_grad_(False)
+        actor, self.baseline_path, self.baseline_observation = load_baseline(self.cfg, self.device, self.actor,
+                                                                              self.critic)
+        return actor
 
     def _make_ppo(self) -> None:
         ppo, gamma = self.cfg.ppo, self.cfg.reward.gamma

@@ -144,6 +144,9 @@ def test_pretrained_from_a_differently_sized_actor_is_a_one_line_error(
     message = str(raised.value)
     assert "\n" not in message
     assert message.startswith(f"{baseline}: the actor network does not match")
+    # Each differing parameter with its shape in this configuration and in the file (one hidden layer of 32).
+    assert "module.0.module.0.weight (128, 23) here, (32, 23) in the file" in message
+    assert "module.0.module.2.weight (128, 128) here, (7, 32) in the file" in message  # the file's output layer
 
 
 @pytest.mark.parametrize(
