@@ -56,6 +56,9 @@ def writable_folder(path: str | Path) -> Path:
     """Create ``path``'s folder if needed; :class:`ConfigError` naming ``path`` if it cannot be written there
     (checked before the work, so that an unwritable output does not end a long run with a traceback)."""
     folder = Path(path).parent
+    blocking = next((above for above in (folder, *folder.parents) if above.exists() and not above.is_dir()), None)
+    if blocking is not None:
+        raise ConfigError(f"{path}: cannot be written: {blocking} is a file, not a folder")
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as error:

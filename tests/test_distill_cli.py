@@ -46,4 +46,4 @@ def test_an_unwritable_destination_is_refused_before_the_rounds(tmp_path, capsys
     blocker.write_text("")
     assert main(["baseline", str(blocker / "student.pt")]) == 2
     assert capsys.readouterr().err.strip() == (
-        f"agrl.distill: error: {blocker / 'student.pt'}: cannot be written: Not a directory")
+        f"agrl.distill: error: {blocker / 'student.pt'}: cannot be written: {blocker} is a file, not a folder")

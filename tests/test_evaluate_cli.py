@@ -58,7 +58,7 @@ ONE_LINE_ERRORS = {
     "missing-checkpoint": (("checkpoint=no/such.pt",), ("checkpoint: no/such.pt: no such checkpoint file",)),
     "unwritable-output": (("checkpoint=baseline", "output_dir=/dev/null/evaluation"),
                           ("output_dir=/dev/null/evaluation is not allowed: /dev/null/evaluation/eval.json: cannot be "
-                           "written",)),
+                           "written: /dev/null is a file, not a folder",)),
 }
 
 
