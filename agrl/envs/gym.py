@@ -120,12 +120,31 @@ def _composed_parameters(overrides: tuple[str, ...], compile: bool) -> GuidanceP
         raise ValueError(str(error)) from None
 
 
+#: reset(options=...)'s entries: (numbers per row, 0 for one number; what they are).
+SCENARIO_WIDTHS = {
+    "aircraft_state": (7, "7 finite numbers per aircraft: x, y, z (m), v (m/s), theta, psi, phi (rad)"),
+    "destination_state": (4, "4 finite numbers per destination: x, y, z (m), psi (rad)"),
+    "destination_speed": (0, "a finite speed (m/s)"),
+    "destination_turn_rate": (0, "a finite turn rate (rad/s)"),
+}
+
+
 def scenario_reset(env: GuidanceEnv, options: dict[str, Any]):
     """``reset(options=...)``'s initial conditions as a :meth:`GuidanceEnv.scenario` (single and vector env)."""
     unknown = sorted(set(options) - set(SCENARIO_KEYS))
     if unknown or "aircraft_state" not in options:
         _fail("options", options, f"a dict with aircraft_state and optionally {', '.join(SCENARIO_KEYS[1:])}")
-    return env.scenario(**{key: torch.as_tensor(np.asarray(value, dtype=np.float32)) for key, value in options.items()})
+    values = {}
+    for key, value in options.items():
+        width, allowed = SCENARIO_WIDTHS[key]
+        try:
+            array = np.asarray(value, dtype=np.float32)
+        except (TypeError, ValueError):
+            array = None
+        if array is None or not np.isfinite(array).all() or (width and (array.ndim == 0 or array.shape[-1] != width)):
+            _fail(key, value, allowed)
+        values[key] = torch.as_tensor(array)
+    return env.scenario(**values)
 
 
 def observation_bounds(params: GuidanceParameters) -> tuple[np.ndarray, np.ndarray]:
@@ -292,11 +311,13 @@ class GuidanceGymEnv(gymnasium.Env):
             raise RuntimeError("agrl/Guidance-v0: call reset() before step() (and after an episode ends)")
         if not (isinstance(action, (int, np.integer)) and 0 <= action < NUM_ACTIONS):
             try:
-                action = int(action)
+                index = int(action)
+                integral = float(action) == index  # 2.0 is maneuver 2; 2.5 is no maneuver
             except (TypeError, ValueError):
-                action = -1
-            if not self.action_space.contains(action):
+                index, integral = None, False
+            if not integral or not self.action_space.contains(index):
                 _fail("action", action, f"an integer maneuver index in [0, {NUM_ACTIONS - 1}]")
+            action = index
         action = int(action)
         if self._irregular:  # GuidanceEnv._step's redraw, from the same generator
             motion = self.params.destination

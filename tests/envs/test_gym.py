@@ -223,6 +223,16 @@ def test_reset_options_start_from_a_scenario():
     np.testing.assert_allclose(info["destination_state"], env.params.destination.start)
     with pytest.raises(ValueError, match="options=.* is not allowed: a dict with aircraft_state"):
         env.reset(options={"aircraft": aircraft})
+    for options, message in (
+            ({"aircraft_state": (0.0, 0.0, 1_000.0)},
+             r"aircraft_state=\(0\.0, 0\.0, 1000\.0\) is not allowed: 7 finite"),
+            ({"aircraft_state": "abc"}, r"aircraft_state='abc' is not allowed: 7 finite numbers"),
+            ({"aircraft_state": [*aircraft[:6], float("nan")]}, r"aircraft_state=\[.*nan\] is not allowed"),
+            ({"aircraft_state": aircraft, "destination_state": [0.0, 0.0]}, r"destination_state=\[0\.0, 0\.0\] is not "
+             r"allowed: 4 finite numbers"),
+            ({"aircraft_state": aircraft, "destination_speed": "fast"}, r"destination_speed='fast' is not allowed")):
+        with pytest.raises(ValueError, match=rf"^{message}"):
+            env.reset(options=options)
 
 
 # ---------------------------------------------------------------------------- the MDP
@@ -325,3 +335,8 @@ def test_bad_calls():
         env.step(7)
     _, _, _, _, info = env.step(np.int64(1))  # numpy integers (what spaces sample) are fine
     assert info["step_count"] == 1
+    for action in ("a", 2.5, None):  # named as given; a fraction is no maneuver (not truncated to one)
+        with pytest.raises(ValueError, match=rf"^action={action!r} is not allowed: an integer maneuver index"):
+            env.step(action)
+    _, _, _, _, info = env.step(np.array(2.0))  # a whole number, e.g. from an array, is that maneuver
+    assert info["step_count"] == 2 and info["instruction_count"] == 2  # 0 -> 1 -> 2: two changes of maneuver
