@@ -69,13 +69,19 @@ class GuidanceEnv(EnvBase):
         seed: int | None = None,
         observation: str = "relative",
     ):
-        super().__init__(device=device, batch_size=torch.Size([num_envs]))
+        if isinstance(num_envs, bool) or not hasattr(num_envs, "__index__") or num_envs < 1:
+            raise ValueError(f"num_envs={num_envs!r} is not allowed: an integer >= 1")
+        try:
+            device = torch.device(device)
+        except (RuntimeError, TypeError):
+            raise ValueError(f"device={device!r} is not allowed: a torch device, e.g. cpu or cuda") from None
+        super().__init__(device=device, batch_size=torch.Size([int(num_envs)]))
         self.params = params
         self.observation_kind = observation
         self._observation_size = observation_size(observation)  # one-line error on an unknown kind
         self._observation = observation_function(observation)
         if self.params.max_decisions < 1:
-            raise ValueError(f"max_decisions must be >= 1, got {self.params.max_decisions}")
+            raise ValueError(f"max_decisions={self.params.max_decisions} is not allowed: an integer >= 1")
         self.simulator = DecisionSimulator(
             self.params.simulation, self.params.maneuvers.controls(self.device), compile=self.params.compile
         )

@@ -128,6 +128,9 @@ class GuidanceVectorEnv(VectorEnv):
                  and bool(((array >= 0) & (array < NUM_ACTIONS)).all()))
         if not valid:
             shown = actions if array.size <= 8 else f"array of shape {array.shape}, dtype {array.dtype}"
+            if array.size > 8 and array.shape == (self.num_envs,) and np.issubdtype(array.dtype, np.integer):
+                bad = int(np.flatnonzero((array < 0) | (array >= NUM_ACTIONS))[0])  # a long batch: its first bad row
+                shown = f"{shown} with actions[{bad}]={array[bad]}"
             _fail("actions", shown, f"{self.num_envs} integer maneuver indices in [0, {NUM_ACTIONS - 1}]")
         return torch.as_tensor(array, dtype=torch.int64, device=self.env.device)
 

@@ -87,8 +87,19 @@ def test_rejects_an_unknown_observation_in_one_line(make_params):
 
 
 def test_rejects_an_empty_decision_budget(make_params):
-    with pytest.raises(ValueError, match="max_decisions"):
+    with pytest.raises(ValueError, match=r"^max_decisions=0 is not allowed: an integer >= 1$"):
         GuidanceEnv(make_params(max_decisions=0), num_envs=1, seed=0)
+
+
+@pytest.mark.parametrize(("arguments", "message"), [
+    ({"num_envs": 0}, "num_envs=0 is not allowed: an integer >= 1"),
+    ({"num_envs": 2.5}, "num_envs=2.5 is not allowed: an integer >= 1"),
+    ({"device": "tpu"}, "device='tpu' is not allowed: a torch device, e.g. cpu or cuda"),
+])
+def test_rejects_a_bad_batch_or_device_in_one_line(make_params, arguments, message):
+    with pytest.raises(ValueError) as raised:
+        GuidanceEnv(make_params(), seed=0, **arguments)
+    assert str(raised.value) == message
 
 
 @pytest.mark.parametrize("kind,function", [("relative", policy_observation), ("absolute", absolute_observation)])

@@ -143,6 +143,12 @@ def test_bad_calls_and_arguments():
         with pytest.raises(ValueError, match="actions=.* is not allowed: 2 integer maneuver indices in"):
             envs.step(bad)
     envs.step([3, 4])  # plain lists of ints are fine
+    many = _make_vec(16, task="fixed")
+    many.reset(seed=0)
+    actions = np.zeros(16, dtype=np.int64)
+    actions[11] = 9
+    with pytest.raises(ValueError, match=r"^actions='array of shape \(16,\), dtype int64 with actions\[11\]=9' is not"):
+        many.step(actions)  # a long batch is named by its first bad row
     with pytest.raises(ValueError, match="num_envs=0 is not allowed: an integer >= 1"):
         GuidanceVectorEnv(num_envs=0)
     with pytest.raises(ValueError, match="task='circle' is not allowed"):
