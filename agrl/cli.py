@@ -25,8 +25,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from agrl.config import ConfigError, compose_config, config_options, load_config
-from agrl.rl.checkpoint import CheckpointError, checkpoint_run_directory, resolve_checkpoint_path
+from agrl.config import ConfigError, compose_checked, load_config, override_key
 
 #: Where a required value has no default, what it may be (shown when it is left out).
 REQUIRED_VALUES = {
@@ -72,15 +71,11 @@ def refuse_unresumable(overrides: Sequence[str]) -> None:
     """Raise :class:`ConfigError` for the first of a resumed run's overrides it may not take (all but ``resume``
     itself and :data:`RESUMABLE_OVERRIDES`: a resumed run keeps its saved config)."""
     for override in overrides:
-        key = _key(override)
+        key = override_key(override)
         if key != "resume" and not key.startswith(RESUMABLE_OVERRIDES):
             allowed = ", ".join(key + ("*" if key.endswith(".") else "") for key in RESUMABLE_OVERRIDES)
             raise ConfigError(f"{override} is not allowed with resume: a resumed run keeps its saved config; "
                               f"only {allowed} may be given")
-
-
-def _key(override: str) -> str:
-    return override.split("=", 1)[0].lstrip("+~")
 
 
 def _candidates(overrides: list[str], multirun: bool) -> list[list[str]]:
@@ -107,58 +102,16 @@ def _candidates(overrides: list[str], multirun: bool) -> list[list[str]]:
     return candidates
 
 
-def _chain(error: BaseException) -> list[BaseException]:
-    chain = [error]
-    while chain[-1].__cause__ is not None or chain[-1].__context__ is not None:
-        chain.append(chain[-1].__cause__ or chain[-1].__context__)
-    return chain
-
-
-def _reason(error: Exception, override: str, config_name: str) -> str:
-    """What is allowed instead of ``override``, from the error Hydra or OmegaConf raised for it."""
-    from hydra.errors import HydraException, MissingConfigException
-    from omegaconf.errors import ConfigAttributeError, ConfigKeyError
-
-    if isinstance(error, MissingConfigException) and "/" not in _key(override):
-        return f"one of {', '.join(config_options(_key(override).split('@', 1)[0]))}"
-    chain = _chain(error)
-    if any(isinstance(cause, (ConfigKeyError, ConfigAttributeError)) for cause in chain):
-        parent, _, leaf = _key(override).rpartition(".")
-        defaults = compose_config(config_name=config_name)
-        node = OmegaConf.select(defaults, parent) if parent else defaults
-        if isinstance(node, DictConfig):
-            where = parent or "the config"
-            return f"{where} has no key {leaf!r}; its keys: {', '.join(str(key) for key in node.keys())}"
-    # Hydra's own message says only which override failed; the first error under it says why.
-    reasons = [cause for cause in chain if not isinstance(cause, HydraException)] or chain
-    return str(reasons[0]).strip().splitlines()[0]
-
-
-def _composed(overrides: list[str], config_name: str) -> DictConfig:
-    """The config these overrides compose, or :class:`ConfigError` naming the first override that fails."""
-    try:
-        return compose_config(*overrides, config_name=config_name)
-    except Exception as error:  # Hydra's composition errors, OmegaConf's key and type errors
-        failure = error
-    for count in range(1, len(overrides) + 1):  # the shortest failing prefix ends with the culprit
-        try:
-            compose_config(*overrides[:count], config_name=config_name)
-        except Exception as error:
-            culprit = overrides[count - 1]
-            raise ConfigError(f"{culprit} is not allowed: {_reason(error, culprit, config_name)}") from None
-    raise ConfigError(str(failure).strip().splitlines()[0]) from None
-
-
 def _refuse_added_keys(overrides: list[str], config_name: str) -> None:
     """``+section.key=value`` adds a key no schema reads (Hydra suggests ``+`` for a mistyped key): refuse it.
     A ``+group=option`` (``+experiment=fast``) appends a config and stays allowed."""
     added = [override for override in overrides
-             if override.startswith("+") and not override.startswith("++") and "." in _key(override)]
+             if override.startswith("+") and not override.startswith("++") and "." in override_key(override)]
     if not added:
         return
-    without = _composed([override for override in overrides if override not in added], config_name)
+    without = compose_checked(*[override for override in overrides if override not in added], config_name=config_name)
     for override in added:
-        parent, _, leaf = _key(override).rpartition(".")
+        parent, _, leaf = override_key(override).rpartition(".")
         node = OmegaConf.select(without, parent)
         if isinstance(node, DictConfig) and leaf not in node.keys():
             raise ConfigError(f"{override} is not allowed: {parent} has no key {leaf!r}; its keys: "
@@ -187,11 +140,11 @@ def check_overrides(arguments: Sequence[str], config_name: str) -> DictConfig | 
         return None
     composed = []
     for candidate in candidates:
-        config = _composed(candidate, config_name)
+        config = compose_checked(*candidate, config_name=config_name)
         _refuse_added_keys(candidate, config_name)
         composed.append(config)
         if config.get("resume"):
-            refuse_unresumable([override for override in candidate if not _key(override).startswith("hydra")])
+            refuse_unresumable([override for override in candidate if not override_key(override).startswith("hydra")])
             _check_checkpoint("resume", config.resume)
             continue
         missing = [key for key in REQUIRED_VALUES if key in config.keys() and OmegaConf.is_missing(config, key)]
@@ -214,6 +167,8 @@ def check_overrides(arguments: Sequence[str], config_name: str) -> DictConfig | 
 def _check_checkpoint(key: str, reference: str) -> None:
     """That ``reference`` names a checkpoint file, a run directory with one, or the shipped baseline (it is not
     read here: the run reads it, safely, and says what is wrong with its content)."""
+    from agrl.rl.checkpoint import CheckpointError, resolve_checkpoint_path  # torch: only where a path is checked
+
     try:
         resolve_checkpoint_path(reference)
     except CheckpointError as error:
@@ -224,8 +179,11 @@ def resume_in_place(arguments: Sequence[str], config: DictConfig | None) -> list
     """Hydra overrides that make ``resume=<run>`` go on in the run's own directory: Hydra's run directory is the
     run's, and Hydra writes no ``.hydra/`` there (the original command's record stays). Nothing for a multirun, or
     if the command line sets ``hydra.run.dir`` itself."""
-    if config is None or not config.get("resume") or any(_key(argument) == "hydra.run.dir" for argument in arguments):
+    chosen = any(override_key(argument) == "hydra.run.dir" for argument in arguments)
+    if config is None or not config.get("resume") or chosen:
         return []
+    from agrl.rl.checkpoint import checkpoint_run_directory, resolve_checkpoint_path
+
     directory = str(checkpoint_run_directory(resolve_checkpoint_path(config.resume)))
     quoted = directory.replace("\\", "\\\\").replace("'", "\\'")
     return [f"hydra.run.dir='{quoted}'", "hydra.output_subdir=null"]
@@ -239,6 +197,8 @@ def run_checked(main: Callable[[], None], program: str, config_name: str,
     (a baseline, a checkpoint) and raises :class:`ConfigError` or :class:`CheckpointError` if one does not fit:
     that too stops before Hydra writes anything.
     """
+    from agrl.rl.checkpoint import CheckpointError
+
     try:
         config = check_overrides(sys.argv[1:], config_name)
         sys.argv += resume_in_place(sys.argv[1:], config)

@@ -460,6 +460,54 @@ def compose_config(*overrides: str, config_name: str = "config") -> DictConfig:
         return compose(config_name=config_name, overrides=list(overrides))
 
 
+def override_key(override: str) -> str:
+    """The key an override sets (``+ppo.lr=1`` -> ``ppo.lr``)."""
+    return override.split("=", 1)[0].lstrip("+~")
+
+
+def _chain(error: BaseException) -> list[BaseException]:
+    chain = [error]
+    while chain[-1].__cause__ is not None or chain[-1].__context__ is not None:
+        chain.append(chain[-1].__cause__ or chain[-1].__context__)
+    return chain
+
+
+def _reason(error: Exception, override: str, config_name: str) -> str:
+    """What is allowed instead of ``override``, from the error Hydra or OmegaConf raised for it."""
+    from hydra.errors import HydraException, MissingConfigException
+    from omegaconf.errors import ConfigAttributeError, ConfigKeyError
+
+    if isinstance(error, MissingConfigException) and "/" not in override_key(override):
+        return f"one of {', '.join(config_options(override_key(override).split('@', 1)[0]))}"
+    chain = _chain(error)
+    if any(isinstance(cause, (ConfigKeyError, ConfigAttributeError)) for cause in chain):
+        parent, _, leaf = override_key(override).rpartition(".")
+        defaults = compose_config(config_name=config_name)
+        node = OmegaConf.select(defaults, parent) if parent else defaults
+        if isinstance(node, DictConfig):
+            where = parent or "the config"
+            return f"{where} has no key {leaf!r}; its keys: {', '.join(str(key) for key in node.keys())}"
+    # Hydra's own message says only which override failed; the first error under it says why.
+    reasons = [cause for cause in chain if not isinstance(cause, HydraException)] or chain
+    return str(reasons[0]).strip().splitlines()[0]
+
+
+def compose_checked(*overrides: str, config_name: str = "config") -> DictConfig:
+    """:func:`compose_config`, or :class:`ConfigError` in one line naming the first override that fails and what
+    is allowed (the keys of its section, the options of its group, or the reason OmegaConf gives)."""
+    try:
+        return compose_config(*overrides, config_name=config_name)
+    except Exception as error:  # Hydra's composition errors, OmegaConf's key and type errors
+        failure = error
+    for count in range(1, len(overrides) + 1):  # the shortest failing prefix ends with the culprit
+        try:
+            compose_config(*overrides[:count], config_name=config_name)
+        except Exception as error:
+            culprit = overrides[count - 1]
+            raise ConfigError(f"{culprit} is not allowed: {_reason(error, culprit, config_name)}") from None
+    raise ConfigError(str(failure).strip().splitlines()[0]) from None
+
+
 def validated_section(schema, values: dict) -> Any:
     """One config section (e.g. a checkpoint's saved ``task``) checked against its schema, as a dataclass."""
     try:
@@ -543,5 +591,5 @@ def guidance_parameters(*overrides: str, compile: bool = False) -> GuidanceParam
     value): ``guidance_parameters("task=uniform", "speed=20", "reward=both")``. ``compile`` fuses the 20 ms
     step with torch.compile (training's choice, ``simulation.compile``); off here for one-off and test use.
     Raises :class:`ConfigError` (one line) on a bad value."""
-    config = load_config(compose_config(*overrides))
+    config = load_config(compose_checked(*overrides))
     return to_guidance_parameters(config.task, config.reward, config.simulation, compile=compile)

@@ -27,6 +27,7 @@ from agrl.config import (
     SimulationConfig,
     TaskConfig,
     TrainConfig,
+    guidance_parameters,
     load_config,
     task_label,
     to_guidance_parameters,
@@ -129,6 +130,18 @@ def test_unknown_task_names_the_value():
     lines = str(info.value).splitlines()
     assert lines[0] == "In 'config': Could not find 'task/bogus'"
     assert lines[2:7] == ["Available options in 'task':", "\tcurved", "\tfixed", "\tirregular", "\tuniform"]
+
+
+@pytest.mark.parametrize(("overrides", "message"), [
+    (("task=bogus",), "task=bogus is not allowed: one of curved, fixed, irregular, uniform"),
+    (("task=uniform", "bogus=1"), "bogus=1 is not allowed: the config has no key 'bogus'; its keys: task, reward, "),
+    (("task=uniform", "speed=-5"), "speed=-5.0 is not allowed: task=uniform needs a destination speed > 0 m/s"),
+])
+def test_guidance_parameters_refuse_overrides_as_the_command_line_does(overrides, message):
+    # The README's `guidance_parameters("task=curved", ...)`: "overrides as on the command line", errors too.
+    with pytest.raises(ConfigError) as raised:
+        guidance_parameters(*overrides)
+    assert str(raised.value).startswith(message) and "\n" not in str(raised.value)
 
 
 def test_unknown_task_name_in_group_is_a_config_error():

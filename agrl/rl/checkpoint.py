@@ -122,15 +122,16 @@ def load_checkpoint(path: str | Path, required: tuple[str, ...] = ("actor",)) ->
     return payload
 
 
-def _layout_differences(expected: dict[str, torch.Tensor], found: dict[str, torch.Tensor]) -> str:
+def _layout_differences(expected: dict[str, torch.Tensor], found: dict[str, torch.Tensor],
+                        where: tuple[str, str] = ("here", "in the file")) -> str:
     """The first few parameters whose name or shape differ between two state dicts ("" if none), for one line:
-    each with its shape in the configuration and in the file."""
+    each with its shape in ``expected`` and in ``found``, labelled by ``where``."""
     expected_shapes = {name: tuple(tensor.shape) for name, tensor in expected.items()}
     found_shapes = {name: tuple(tensor.shape) for name, tensor in found.items()}
     differing = sorted(name for name in expected_shapes.keys() | found_shapes.keys()
                        if expected_shapes.get(name) != found_shapes.get(name))
-    return "; ".join(f"{name} {expected_shapes.get(name, 'absent')} here, {found_shapes.get(name, 'absent')} "
-                     "in the file" for name in differing[:4])
+    return "; ".join(f"{name} {expected_shapes.get(name, 'absent')} {where[0]}, "
+                     f"{found_shapes.get(name, 'absent')} {where[1]}" for name in differing[:4])
 
 
 def load_module_state(module: torch.nn.Module, state: dict[str, torch.Tensor], path: Path, what: str) -> None:
@@ -207,7 +208,7 @@ def average_agents(sources: list[str | Path], destination: str | Path, **extra: 
     first = payloads[0]
     for path, payload in zip(paths[1:], payloads[1:], strict=True):
         for part in ("actor", "critic"):
-            detail = _layout_differences(first[part], payload[part])
+            detail = _layout_differences(first[part], payload[part], ("in the first", "in this one"))
             if detail:
                 raise CheckpointError(f"{path}: its {part} network differs from {paths[0]}'s ({detail}); only agents "
                                       "of one architecture can be averaged")
