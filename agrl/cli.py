@@ -7,8 +7,10 @@ same config with Hydra's compose API and validates it against the schemas of :mo
 then stops with one line that names it and what is allowed, and nothing is written. A multirun (``-m``) has
 each value of each sweep checked. Hydra's own overrides (``hydra.run.dir=...``, ``hydra/launcher=joblib``) compose
 here as they do in Hydra; its other flags (``--help``, ``--cfg`` ...) are left to it. A checkpoint the command
-names (``resume=``, ``checkpoint=``, ``method.baseline=``) must exist, and a resumed run takes only the overrides
-of :data:`RESUMABLE_OVERRIDES`.
+names (``resume=``, ``checkpoint=``, ``method.baseline=``) must exist, the evaluation's ``output_dir`` must be
+writable, and a resumed run takes only the overrides of :data:`RESUMABLE_OVERRIDES`; each entry point may also
+load the files its run will read (``inputs`` of :func:`run_checked`: the baseline, the checkpoint to evaluate), so
+a file that does not fit stops it before Hydra writes anything too.
 
 A resumed run goes on in its own directory: :func:`run_checked` points Hydra's run directory there (its log is
 appended to the run's ``train.log``, its ``.hydra/`` record of the original command is left as it was), so a
@@ -73,7 +75,7 @@ def refuse_unresumable(overrides: Sequence[str]) -> None:
     for override in overrides:
         key = override_key(override)
         if key != "resume" and not key.startswith(RESUMABLE_OVERRIDES):
-            allowed = ", ".join(key + ("*" if key.endswith(".") else "") for key in RESUMABLE_OVERRIDES)
+            allowed = ", ".join(prefix + ("*" if prefix.endswith(".") else "") for prefix in RESUMABLE_OVERRIDES)
             raise ConfigError(f"{override} is not allowed with resume: a resumed run keeps its saved config; "
                               f"only {allowed} may be given")
 

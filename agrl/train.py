@@ -20,7 +20,7 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from agrl.cli import RESUMABLE_OVERRIDES, refuse_unresumable, run_checked
-from agrl.config import ConfigError, load_config
+from agrl.config import ConfigError, load_config, override_key
 from agrl.rl.checkpoint import CheckpointError, checkpoint_run_directory, load_checkpoint, resolve_checkpoint_path
 
 log = logging.getLogger("agrl.train")
@@ -34,7 +34,7 @@ def _resume_config(cfg: DictConfig, reference: str) -> tuple[DictConfig, dict, P
     saved = OmegaConf.merge(cfg, payload["config"])
     given = list(HydraConfig.get().overrides.task)
     refuse_unresumable(given)  # checked before Hydra ran too (agrl.cli); here for callers of main() itself
-    overrides = [override for override in given if override.lstrip("+~").startswith(RESUMABLE_OVERRIDES)]
+    overrides = [override for override in given if override_key(override).startswith(RESUMABLE_OVERRIDES)]
     saved = OmegaConf.merge(saved, OmegaConf.from_dotlist(overrides))
     saved.resume = str(reference)
     return saved, payload, checkpoint_run_directory(path, payload)
