@@ -243,8 +243,9 @@ def moving_tables(runs: list[dict[str, Any]], figure_dir: Path | None, figure_su
                 _, minutes, hits = _reached(group, 0.95)
                 reference = paper.get(int(value), {}).get(method) if paper else None
                 paper_text = f"; paper {reference * 100:.1f} %" if reference else ""
-                cells.append(f"{success} % (n={len(group)}); 95 % evaluation success after "
-                             f"{_mean_std(minutes, '.1f')} min ({hits}/{len(group)}){paper_text}")
+                after = f"after {_mean_std(minutes, '.1f')} min" if hits else "not reached"
+                cells.append(f"{success} % (n={len(group)}); 95 % evaluation success {after} "
+                             f"({hits}/{len(group)}){paper_text}")
             out.append(f"| {METHOD_LABELS[method]} | " + " | ".join(cells) + " |")
         out.append("")
         if figure_dir is not None:
@@ -326,6 +327,8 @@ def targets_table(groups: dict) -> str:
             f"| {setting} | {text['scratch']} | {text['pretrained']} | {text['reuse']} | "
             f"{text['reuse_from_baseline']} | {compare['scratch']} | {compare['pretrained']} | {lowest} | {cost} |"
         )
+    if len(lines) == 4:  # no setting with reuse runs: nothing to compare
+        return ""
     return "\n".join(lines) + "\n"
 
 

@@ -86,6 +86,13 @@ def test_a_missing_folder_and_bad_times_are_refused_naming_them(tmp_path, capsys
         assert capsys.readouterr().err.strip().splitlines()[-1] == f"python -m agrl.report: error: {message}"
 
 
+def test_a_setting_no_seed_got_to_95_percent_says_so_and_without_reuse_there_is_no_comparison(tmp_path):
+    make_run(tmp_path, "p", "pretrained", 50, 0.90, [(0, 0.0), (120, 0.9)])
+    text = moving_tables(find_runs(tmp_path), figure_dir=None)
+    assert "| Pre-trained algorithm | 90.0 % (n=1); 95 % evaluation success not reached (0/1); paper 99.2 % |" in text
+    assert "Against the targets" not in text  # no reuse run: nothing to compare
+
+
 def test_figures_are_linked_from_their_own_folder_and_checked_first(tmp_path, capsys):
     make_run(tmp_path / "runs", "r", "reuse", 20, 0.97, [(0, 0.0), (120, 0.96)])
     text = moving_tables(find_runs(tmp_path / "runs"), figure_dir=tmp_path / "figs")
