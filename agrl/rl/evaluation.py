@@ -95,7 +95,11 @@ def wilson_interval(successes: int, trials: int, z: float = 1.959964) -> tuple[f
     denominator = 1 + z * z / trials
     centre = (p + z * z / (2 * trials)) / denominator
     half = z * math.sqrt(p * (1 - p) / trials + z * z / (4 * trials * trials)) / denominator
-    return max(0.0, centre - half), min(1.0, centre + half)
+    # No success (no failure) puts that end at exactly 0 (1): the formula's two terms are then equal, and their
+    # difference would be a rounding residue (2e-19), not a bound.
+    low = 0.0 if successes == 0 else max(0.0, centre - half)
+    high = 1.0 if successes == trials else min(1.0, centre + half)
+    return low, high
 
 
 def summarise(records: EpisodeRecords) -> dict[str, float | int | dict]:

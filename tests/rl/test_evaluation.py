@@ -69,7 +69,7 @@ def test_summarise_without_successes():
     assert summary["instructions_per_episode"] == pytest.approx(2.5)
 
 
-@pytest.mark.parametrize(("successes", "trials"), [(0, 10), (3, 5), (50, 100), (999, 1000), (1000, 1000)])
+@pytest.mark.parametrize(("successes", "trials"), [(0, 10), (0, 1000), (3, 5), (50, 100), (999, 1000), (1000, 1000)])
 def test_wilson_interval_properties(successes, trials):
     low, high = wilson_interval(successes, trials)
     p = successes / trials
@@ -77,6 +77,7 @@ def test_wilson_interval_properties(successes, trials):
     # Mirror symmetry: the interval of failures is the reflected interval of successes.
     mirrored = wilson_interval(trials - successes, trials)
     assert mirrored[0] == pytest.approx(1 - high) and mirrored[1] == pytest.approx(1 - low)
+    assert (low == 0.0) == (successes == 0) and (high == 1.0) == (successes == trials)  # exactly, no residue
     # Wilson's score interval solves |p - q| = z sqrt(q (1 - q) / n) at both ends (where not clipped).
     for q in (low, high):
         if 0 < q < 1:
