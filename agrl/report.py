@@ -158,8 +158,9 @@ def independent_evaluation(run: dict, folder: str) -> dict | None:
 
 
 def table3(runs: list[dict[str, Any]], independent: tuple[str, ...] = ()) -> str:
-    """The paper's Table 3 (mean ± standard deviation over seeds), one row per reward variant: the paper's four in
-    its order, then ``switch`` rows by cost. ``independent`` names evaluation folders inside each run (see
+    """The paper's Table 3 (mean ± standard deviation over seeds) from the fixed-destination runs among ``runs``,
+    one row per reward variant and method: the paper's four in its order, then ``switch`` rows by cost, then those
+    of runs that started from a baseline (a fine-tune, ``+experiment=switch_finetune``). ``independent`` names evaluation folders inside each run (see
     :func:`independent_evaluation`); each adds a column of success and instructions on those episodes."""
     groups: dict[str, list] = defaultdict(list)
     order: dict[str, tuple] = {}  # rows: the paper's in its order, then by method, switch cost and name
@@ -397,15 +398,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f"agrl.report: error: no finished runs (eval/eval.json) below {args.root}", file=sys.stderr)
         return 2
     if args.kind == "table3":
-        fixed = [run for run in runs if run["config"]["task"]["name"] == "fixed"]
-        if not fixed:
+        others = sum(run["config"]["task"]["name"] != "fixed" for run in runs)
+        if others == len(runs):
             print(f"agrl.report: error: no finished fixed-destination runs below {args.root} (Table 3 is the fixed "
                   "destination)", file=sys.stderr)
             return 2
-        if len(fixed) < len(runs):
-            print(f"agrl.report: {len(runs) - len(fixed)} runs of other tasks left out: Table 3 is the fixed "
-                  "destination", file=sys.stderr)
-        print(table3(fixed, tuple(args.independent)))
+        if others:
+            print(f"agrl.report: {others} run{'s' if others > 1 else ''} of other tasks left out: Table 3 is the "
+                  "fixed destination", file=sys.stderr)
+        print(table3(runs, tuple(args.independent)))
     elif args.kind == "moving":
         print(moving_tables(runs, args.figures, args.figure_suffix))
     else:

@@ -205,7 +205,7 @@ def test_table3_is_the_fixed_destination_with_each_method_its_row(tmp_path, caps
     captured = capsys.readouterr()
     rows = [line.split(" | ")[0].lstrip("| ") for line in captured.out.strip().splitlines()[2:]]
     assert rows == ["switch (k = 0.1)", "switch (k = 0.3), pre-trained algorithm"]
-    assert captured.err.strip() == "agrl.report: 1 runs of other tasks left out: Table 3 is the fixed destination"
+    assert captured.err.strip() == "agrl.report: 1 run of other tasks left out: Table 3 is the fixed destination"
 
 
 def test_metrics_rows_come_back_from_tensorboard_one_per_step(tmp_path):
