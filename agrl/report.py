@@ -160,8 +160,9 @@ def independent_evaluation(run: dict, folder: str) -> dict | None:
 def table3(runs: list[dict[str, Any]], independent: tuple[str, ...] = ()) -> str:
     """The paper's Table 3 (mean ± standard deviation over seeds) from the fixed-destination runs among ``runs``,
     one row per reward variant and method: the paper's four in its order, then ``switch`` rows by cost, then those
-    of runs that started from a baseline (a fine-tune, ``+experiment=switch_finetune``). ``independent`` names evaluation folders inside each run (see
-    :func:`independent_evaluation`); each adds a column of success and instructions on those episodes."""
+    of runs that started from a baseline (a fine-tune, ``+experiment=switch_finetune``). ``independent`` names
+    evaluation folders inside each run (see :func:`independent_evaluation`); each adds a column of success and
+    instructions on those episodes."""
     groups: dict[str, list] = defaultdict(list)
     order: dict[str, tuple] = {}  # rows: the paper's in its order, then by method, switch cost and name
     for run in runs:
