@@ -7,10 +7,10 @@ same config with Hydra's compose API and validates it against the schemas of :mo
 then stops with one line that names it and what is allowed, and nothing is written. A multirun (``-m``) has
 each value of each sweep checked. Hydra's own overrides (``hydra.run.dir=...``, ``hydra/launcher=joblib``) compose
 here as they do in Hydra; its other flags (``--help``, ``--cfg`` ...) are left to it. A checkpoint the command
-names (``resume=``, ``checkpoint=``, ``method.baseline=``) must exist, the evaluation's ``output_dir`` must be
-writable, and a resumed run takes only the overrides of :data:`RESUMABLE_OVERRIDES`; each entry point may also
-load the files its run will read (``inputs`` of :func:`run_checked`: the baseline, the checkpoint to evaluate), so
-a file that does not fit stops it before Hydra writes anything too.
+names (``resume=``, ``checkpoint=``, ``method.baseline=``) must exist, and a resumed run takes only the overrides
+of :data:`RESUMABLE_OVERRIDES`; each entry point may also check what its run will read and write (``inputs`` of
+:func:`run_checked`: the baseline, the checkpoint to evaluate, the evaluation's ``output_dir``), so a file that
+does not fit stops it before Hydra writes anything too.
 
 A resumed run goes on in its own directory: :func:`run_checked` points Hydra's run directory there (its log is
 appended to the run's ``train.log``, its ``.hydra/`` record of the original command is left as it was), so a
@@ -157,12 +157,6 @@ def check_overrides(arguments: Sequence[str], config_name: str) -> DictConfig | 
             reference = OmegaConf.select(config, key, default=None)
             if reference and not (key == "method.baseline" and config.method.name == "scratch"):
                 _check_checkpoint(key, reference)
-        output = OmegaConf.select(config, "output_dir", default=None)  # the evaluation's: checked before its episodes
-        if output:
-            try:
-                writable_folder(Path(output) / "eval.json")
-            except ConfigError as error:
-                raise ConfigError(f"output_dir={output} is not allowed: {error}") from None
     return None if multirun else composed[0]
 
 

@@ -42,6 +42,17 @@ def load_agent(reference: str, device: torch.device | str = "cpu"):
     return actor.eval(), payload["config"], path
 
 
+def check_inputs(config) -> None:
+    """What the evaluation reads and writes, checked before Hydra runs (agrl.cli.run_checked calls this): the
+    checkpoint loads, and ``output_dir`` (if given) can be written."""
+    if config.output_dir:
+        try:
+            writable_folder(Path(config.output_dir) / "eval.json")
+        except ConfigError as error:
+            raise ConfigError(f"output_dir={config.output_dir} is not allowed: {error}") from None
+    load_agent(config.checkpoint)
+
+
 def evaluate(cfg) -> dict[str, Any]:
     from agrl.envs.guidance import GuidanceEnv
     from agrl.plots import plot_trajectories
@@ -81,4 +92,4 @@ def main(cfg: DictConfig) -> None:
 
 
 if __name__ == "__main__":
-    run_checked(main, "agrl.evaluate", "evaluate", lambda config: load_agent(config.checkpoint))
+    run_checked(main, "agrl.evaluate", "evaluate", check_inputs)

@@ -122,7 +122,10 @@ class Trainer:
         self.env, self.eval_env = self._make_envs()
         self.actor = make_actor(cfg.agent.actor_hidden, cfg.agent.activation, self.device, cfg.agent.observation)
         self.critic = make_critic(cfg.agent.critic_hidden, cfg.agent.activation, self.device, cfg.agent.observation)
-        self.baseline_actor = self._load_baseline(cfg.method.baseline) if cfg.method.name != "scratch" else None
+        self.baseline_actor = None  # B: the frozen baseline actor (pretrained and reuse also start Z from it)
+        if cfg.method.name != "scratch":
+            self.baseline_actor, self.baseline_path, self.baseline_observation = load_baseline(
+                cfg, self.device, self.actor, self.critic)
         self._make_ppo()
         self.reuse = self._make_reuse_transform() if cfg.method.name == "reuse" else None
         self.buffer = self._make_buffer()
@@ -179,12 +182,6 @@ class Trainer:
         # actor's actions there: without it a worker run is not reproducible.
         collector.set_seed(self.cfg.seed)
         return collector
-
-    def _load_baseline(self, reference: str):
-        """The frozen baseline actor B; pretrained (and reuse from B) also start Z's networks from it."""
-        actor, self.baseline_path, self.baseline_observation = load_baseline(self.cfg, self.device, self.actor,
-                                                                              self.critic)
-        return actor
 
     def _make_ppo(self) -> None:
         ppo, gamma = self.cfg.ppo, self.cfg.reward.gamma
