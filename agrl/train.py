@@ -22,6 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 from agrl.cli import RESUMABLE_OVERRIDES, refuse_unresumable, run_checked
 from agrl.config import ConfigError, load_config, override_key
 from agrl.rl.checkpoint import CheckpointError, checkpoint_run_directory, load_checkpoint, resolve_checkpoint_path
+from agrl.rl.stop_signals import PREEMPTED_EXIT_CODE, Preempted
 
 log = logging.getLogger("agrl.train")
 
@@ -66,6 +67,9 @@ def main(cfg: DictConfig) -> None:
         sys.exit(2)
     except KeyboardInterrupt:
         sys.exit(130)
+    except Preempted as stopped:  # SIGTERM / SIGUSR1: a scheduler's pre-emption or time limit
+        print(f"agrl.train: {stopped}", file=sys.stderr)
+        sys.exit(PREEMPTED_EXIT_CODE)
     except Exception as error:
         from agrl.rl.trainer import TrainingDiverged
 

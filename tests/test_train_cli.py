@@ -17,6 +17,7 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 
 from agrl.report import read_metrics
 from agrl.rl.checkpoint import CheckpointError, load_checkpoint
+from agrl.rl.stop_signals import PREEMPTED_EXIT_CODE
 from agrl.rl.trainer import Trainer
 
 TRAINING_STATE = ("actor", "critic", "optimizer", "counters", "carrier", "rng", "config")
@@ -180,6 +181,47 @@ def test_ctrl_c_saves_latest_and_resume_continues(tmp_path, run_cli, tiny_args, 
     assert [int(row["iteration"]) for row in read_metrics(run)][-1] == iteration + 1
 
 
+# ---------------------------------------------------------------------------- pre-emption
+@pytest.mark.usefixtures("torch_one_thread")
+@pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGUSR1], ids=["SIGTERM", "SIGUSR1"])
+def test_a_stop_signal_saves_latest_and_exits_to_be_resumed(tmp_path, run_cli, tiny_args, stop_signal):
+    """What Slurm (and submitit) send before a pre-emption or a time limit: a checkpoint newer than the signal, a
+    distinct exit code within 30 s, one line saying how to resume; the resume then finishes the run."""
+    run = tmp_path / "run"
+    # No periodic `latest` (checkpoint_interval=1000): the checkpoint must come from the signal.
+    command = run_cli.command("train", *tiny_args({"ppo.total_frames": 10**9, "checkpoint_interval": 1000}),
+                              f"hydra.run.dir={run}")
+    latest = run / "checkpoints" / "latest.pt"
+    with (tmp_path / "stdout").open("w") as out, (tmp_path / "stderr").open("w") as err:
+        process = subprocess.Popen(command, cwd=run_cli.cwd, env=run_cli.environment(), stdout=out, stderr=err)
+        try:
+            deadline = time.monotonic() + 120
+            while len(read_metrics(run)) < 2:  # iteration 1 complete
+                assert process.poll() is None, (tmp_path / "stderr").read_text()[-3000:]
+                assert time.monotonic() < deadline, "two iterations did not finish within 120 s"
+                time.sleep(0.05)
+            assert not latest.exists()
+            signalled = time.time()
+            process.send_signal(stop_signal)
+            code = process.wait(timeout=30)
+        finally:
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+    stderr = (tmp_path / "stderr").read_text()
+    assert code == PREEMPTED_EXIT_CODE, stderr[-3000:]
+    assert latest.stat().st_mtime >= signalled
+    line = f"agrl.train: stopped by {stop_signal.name}: saved the last completed iteration to {latest}; " \
+           f"resume with: python -m agrl.train resume={run}"
+    assert line in stderr.splitlines(), stderr[-3000:]
+    iteration = load_checkpoint(latest, required=TRAINING_STATE)["counters"]["iteration"]
+    assert iteration >= 1
+
+    resumed = run_cli("train", f"resume={run}", f"ppo.total_frames={512 * (iteration + 1)}")
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
+    assert json.loads(resumed.stdout.splitlines()[-1])["iterations"] == iteration + 1
+
+
 # ---------------------------------------------------------------------------- command-line errors
 #: Bad command lines and what their one-line error must say: {case: (arguments, fragments of the line)}.
 ONE_LINE_ERRORS = {
@@ -199,7 +241,8 @@ ONE_LINE_ERRORS = {
     "sweep-without-m": (("seed=0,1",), ("seed=0,1 is not allowed: a sweep needs -m",)),
     "missing-baseline": (("method=pretrained", "method.baseline=no/such.pt"),
                          ("method.baseline: no/such.pt: no such checkpoint file or run directory; allowed: a "
-                          "checkpoint file, a run directory, or baseline (the shipped agent)",)),
+                          "checkpoint file, a run directory, or a shipped agent (baseline, baseline-stage1, "
+                          "baseline-both-terms, baseline-absolute)",)),
     "resume-missing": (("resume=no/such/run",), ("resume: no/such/run: no such checkpoint file or run directory",)),
     "baseline-other-networks": (("method=pretrained", "method.baseline=baseline", "agent.actor_hidden=[64,64]"),
                                 ("fixed_baseline.pt: the actor network does not match this configuration",
@@ -303,7 +346,8 @@ def test_divergence_exits_3_with_the_iteration_and_the_checkpoint_folder(bad_run
 def test_reuse_without_a_baseline_is_one_line(bad_runs):
     line = single_error_line(bad_runs["reuse-without-baseline"], 2)
     assert line == ("agrl.train: error: method.baseline=None is not allowed: "
-                    "method=reuse needs a baseline checkpoint (a path, or 'baseline')")
+                    "method=reuse needs a baseline checkpoint (a path, or a shipped agent: baseline, "
+                    "baseline-stage1, baseline-both-terms, baseline-absolute)")
 
 
 def test_candidate_stride_beyond_the_decision_budget_is_one_line(bad_runs):

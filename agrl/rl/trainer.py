@@ -63,6 +63,7 @@ from agrl.rl.run_state import (
     rng_states,
     seed_everything,
 )
+from agrl.rl.stop_signals import Preempted, StopSignals
 
 __all__ = ["Counters", "Trainer", "TrainingDiverged"]
 
@@ -378,39 +379,8 @@ class Trainer:
         self._snapshot = self._state()
         reason = self._finished()
         try:
-            batches = iter(self.collector)
-            while reason is None:
-                iteration_start = time.perf_counter()
-                data = next(batches)
-                collect_time = time.perf_counter() - iteration_start
-                learning_rate = self._set_learning_rate()
-                data, losses, relabel_time = self.learn(data)
-
-                self.counters.iteration += 1
-                self.counters.frames += data.numel()
-                self.counters.wall_time = wall_offset + time.perf_counter() - start
-                iteration_time = time.perf_counter() - iteration_start
-                metrics = {**episode_statistics(data), **{f"loss/{k}": v for k, v in losses.items()},
-                           "train/learning_rate": learning_rate, "train/iteration": self.counters.iteration,
-                           "time/decisions_per_second": data.numel() / iteration_time,
-                           "time/collection_decisions_per_second": data.numel() / max(collect_time, 1e-9),
-                           "time/iteration_seconds": iteration_time, "time/wall_time": self.counters.wall_time}
-                self._advance_curriculum(metrics)
-                if self.reuse is not None:  # only reuse has relabelled rows: no full-buffer read otherwise
-                    metrics.update(self.reuse.last_statistics(), **{"time/reuse_seconds": relabel_time},
-                                   **clip_fraction_by_source(self.actor, self.buffer[:], cfg.ppo.clip_epsilon))
-                if self._evaluation_due(metrics):
-                    metrics.update(self._periodic_evaluation())
-                self._snapshot = self._state()
-                self._log(metrics)
-                self._checkpoint(metrics)
-                bar.update(data.numel())
-                bar.set_postfix(success=f"{metrics.get('train/success_rate', float('nan')):.3f}",
-                                dps=f"{metrics['time/decisions_per_second']:.0f}")
-                if not show_progress and ("eval/success_rate" in metrics or self.counters.iteration == 1):
-                    log.info(progress_line(self.counters.iteration, self.counters.frames, self.counters.wall_time,
-                                           metrics))
-                reason = self._finished() or self._target_reached(metrics)
+            with StopSignals() as stop:
+                reason = self._loop(bar, start, wall_offset, show_progress, reason, stop)
         except KeyboardInterrupt:
             bar.close()
             path = self.save("latest", self._snapshot)
@@ -423,6 +393,51 @@ class Trainer:
         self.save("latest", self._snapshot)
         log.info("training stopped: %s", reason)
         return self.final_evaluation()
+
+    def _loop(self, bar: tqdm.tqdm, start: float, wall_offset: float, show_progress: bool, reason: str | None,
+              stop: StopSignals) -> str:
+        """Iterate until ``reason`` says why to stop; a stop signal saves ``latest`` and raises
+        :class:`Preempted` after the iteration it arrived in (the state is whole only between iterations)."""
+        cfg = self.cfg
+        batches = iter(self.collector)
+        while reason is None:
+            iteration_start = time.perf_counter()
+            data = next(batches)
+            collect_time = time.perf_counter() - iteration_start
+            learning_rate = self._set_learning_rate()
+            data, losses, relabel_time = self.learn(data)
+
+            self.counters.iteration += 1
+            self.counters.frames += data.numel()
+            self.counters.wall_time = wall_offset + time.perf_counter() - start
+            iteration_time = time.perf_counter() - iteration_start
+            metrics = {**episode_statistics(data), **{f"loss/{k}": v for k, v in losses.items()},
+                       "train/learning_rate": learning_rate, "train/iteration": self.counters.iteration,
+                       "time/decisions_per_second": data.numel() / iteration_time,
+                       "time/collection_decisions_per_second": data.numel() / max(collect_time, 1e-9),
+                       "time/iteration_seconds": iteration_time, "time/wall_time": self.counters.wall_time}
+            self._advance_curriculum(metrics)
+            if self.reuse is not None:  # only reuse has relabelled rows: no full-buffer read otherwise
+                metrics.update(self.reuse.last_statistics(), **{"time/reuse_seconds": relabel_time},
+                               **clip_fraction_by_source(self.actor, self.buffer[:], cfg.ppo.clip_epsilon))
+            if self._evaluation_due(metrics):
+                metrics.update(self._periodic_evaluation())
+            self._snapshot = self._state()
+            self._log(metrics)
+            self._checkpoint(metrics)
+            bar.update(data.numel())
+            bar.set_postfix(success=f"{metrics.get('train/success_rate', float('nan')):.3f}",
+                            dps=f"{metrics['time/decisions_per_second']:.0f}")
+            if not show_progress and ("eval/success_rate" in metrics or self.counters.iteration == 1):
+                log.info(progress_line(self.counters.iteration, self.counters.frames, self.counters.wall_time,
+                                       metrics))
+            reason = self._finished() or self._target_reached(metrics)
+            if stop.received:
+                path = self.save("latest", self._snapshot)
+                preempted = Preempted(stop.received, str(path), str(self.run_dir))
+                log.warning("%s", preempted)
+                raise preempted
+        return reason
 
     def _checkpoint(self, metrics: dict[str, float]) -> None:
         """``best`` on a new best periodic evaluation, ``latest`` every ``checkpoint_interval`` iterations."""
