@@ -27,18 +27,19 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from agrl.baselines import shipped_agent_names
 from agrl.config import ConfigError, compose_checked, load_config, override_key
 
 #: Where a required value has no default, what it may be (shown when it is left out).
 REQUIRED_VALUES = {
-    "checkpoint": "a checkpoint file, a run directory, or baseline (the shipped fixed-destination agent)",
+    "checkpoint": f"a checkpoint file, a run directory, or a shipped agent ({shipped_agent_names()})",
 }
 
 
 #: Values a resumed run may take from the command line; all else comes from its checkpoint.
 RESUMABLE_OVERRIDES = ("ppo.total_frames", "ppo.max_minutes", "ppo.compile_loss", "target_success", "progress",
                        "device", "threads", "checkpoint_interval", "eval.")
-#: Keys whose value names a checkpoint (a file, a run directory or ``baseline``): it must exist.
+#: Keys whose value names a checkpoint (a file, a run directory or a shipped agent's name): it must exist.
 CHECKPOINT_KEYS = ("resume", "checkpoint", "method.baseline")
 
 
@@ -161,7 +162,7 @@ def check_overrides(arguments: Sequence[str], config_name: str) -> DictConfig | 
 
 
 def _check_checkpoint(key: str, reference: str) -> None:
-    """That ``reference`` names a checkpoint file, a run directory with one, or the shipped baseline (it is not
+    """That ``reference`` names a checkpoint file, a run directory with one, or a shipped agent (it is not
     read here: the run reads it, safely, and says what is wrong with its content)."""
     from agrl.rl.checkpoint import CheckpointError, resolve_checkpoint_path  # torch: only where a path is checked
 

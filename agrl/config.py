@@ -21,6 +21,7 @@ from typing import Any
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
+from agrl.baselines import shipped_agent_names
 from agrl.core.observation import LEGACY_OBSERVATION
 from agrl.core.parameters import GuidanceParameters, MotionKind
 
@@ -286,7 +287,7 @@ class MethodConfig:
 
     name: str = MISSING  # scratch | pretrained | reuse
     use_curriculum: bool = MISSING  # apply the root `curriculum` (off for methods that start from a baseline)
-    baseline: str | None = None  # pretrained, reuse: a checkpoint path, or "baseline" for the shipped one
+    baseline: str | None = None  # pretrained, reuse: a checkpoint path, or a shipped agent's name (agrl.baselines)
     initial_selection_factor: float | None = None  # e at the start (Algorithm 1)
     selection_decay: float | None = None  # k, subtracted from e per relabelled episode
     candidate_stride: int | None = None  # consider every n-th step as a termination step t_n
@@ -302,7 +303,8 @@ class MethodConfig:
         _require(self.name in ("scratch", "pretrained", "reuse"), "method", self.name,
                  "one of scratch, pretrained, reuse")
         _require(self.name == "scratch" or bool(self.baseline), "method.baseline", self.baseline,
-                 f"method={self.name} needs a baseline checkpoint (a path, or 'baseline')")
+                 f"method={self.name} needs a baseline checkpoint (a path, or a shipped agent: "
+                 f"{shipped_agent_names()})")
         _require(not self.start_from_baseline or self.name == "reuse", "method.start_from_baseline",
                  self.start_from_baseline, "true only with method=reuse (pretrained always starts from it)")
         if self.name != "reuse":
@@ -521,7 +523,8 @@ def validated_section(schema, values: dict) -> Any:
 
 def saved_agent_config(saved: dict) -> AgentConfig:
     """A checkpoint's saved ``agent`` section, validated. Checkpoints written before ``agent.observation``
-    existed (the 2026-12-01 baseline among them) have no entry: their agents read the relative observation."""
+    existed (the shipped ``baseline-both-terms`` among them) have no entry: their agents read the relative
+    observation."""
     return validated_section(AgentConfig, {"observation": LEGACY_OBSERVATION, **saved["agent"]})
 
 

@@ -2,7 +2,7 @@
 from a teacher's policy, on another input or from an ensemble.
 
 Writes a checkpoint whose actor and critic read observation ``--observation`` (``agent.observation``) and
-reproduce TEACHER's (a checkpoint, run directory or ``baseline``) on the teacher's own task: supervised
+reproduce TEACHER's (a checkpoint, run directory or shipped agent's name) on the teacher's own task: supervised
 distillation with DAgger (:func:`agrl.rl.distill.distill`): each round flies the teacher's task with the
 current student (the teacher in round 0, 10 % random decisions), the teacher labels every visited state with
 its action probabilities and value, and the student's actor and critic are fitted to all rounds' labels.
@@ -10,8 +10,9 @@ its action probabilities and value, and the student's actor and critic are fitte
 Made for the paper's input interface (equation 4, ``--observation absolute``): PPO with it learns the fixed
 destination far more slowly than with the relative observation (docs/policy_reuse.md, "The paper's
 observation"), and both observations describe the same state when the destination is at the origin, so the
-shipped baseline's policy can be re-expressed on equation 4's inputs. The student has only ever seen the
-fixed destination, as the paper's baseline: what policy reuse needs to be tested as the paper ran it.
+shipped baseline's policy can be re-expressed on equation 4's inputs (the shipped ``baseline-absolute`` was made
+so). The student has only ever seen the fixed destination, as the paper's baseline: what policy reuse needs to be
+tested as the paper ran it.
 
 Several teachers make one ensemble teacher: the mean of their action probabilities (and of their values). With
 ``--observation relative`` this compresses agents fine-tuned from one start (``+experiment=switch_finetune``
@@ -37,7 +38,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m agrl.distill", description=summary,
                                      formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("teachers", nargs="+", metavar="TEACHER",
-                        help="checkpoint, run directory or 'baseline'; several: their ensemble is the teacher")
+                        help="checkpoint, run directory or shipped agent (python -m agrl.baselines); several: "
+                             "their ensemble is the teacher")
     parser.add_argument("destination", help="the student checkpoint to write")
     parser.add_argument("--observation", default="absolute", choices=("relative", "absolute"),
                         help="the student's input: equation 4's (absolute) or agrl's (relative)")

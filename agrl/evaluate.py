@@ -31,7 +31,7 @@ from agrl.rl.checkpoint import CheckpointError, load_checkpoint, load_module_sta
 
 
 def load_agent(reference: str, device: torch.device | str = "cpu"):
-    """(actor, saved config dict, path) of a checkpoint file, run directory or ``baseline``."""
+    """(actor, saved config dict, path) of a checkpoint file, run directory or shipped agent's name."""
     from agrl.rl.models import make_actor
 
     path = resolve_checkpoint_path(reference)

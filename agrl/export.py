@@ -39,7 +39,8 @@ def _dynamic_batch():
 
 
 def export_torch(source: str | Path, destination: str | Path) -> Path:
-    """Write ``source``'s policy (``baseline``, a checkpoint or a run directory) as a ``torch.export`` ``.pt2``."""
+    """Write ``source``'s policy (a shipped agent's name, a checkpoint or a run directory) as a ``torch.export``
+    ``.pt2``."""
     from agrl.guide import example_inputs, export_metadata, load_policy
 
     policy, _, checkpoint = load_policy(source)
@@ -98,8 +99,8 @@ def main(argv: list[str] | None = None) -> int:
     summary = " ".join(__doc__.split("\n\n")[0].split())  # the docstring's first paragraph
     parser = argparse.ArgumentParser(prog="python -m agrl.export", description=summary)
     parser.add_argument("sources", nargs="+", metavar="source",
-                        help="a checkpoint file, a run directory or 'baseline'; several (format checkpoint): one agent "
-                             "with their averaged weights")
+                        help="a checkpoint file, a run directory or a shipped agent (python -m agrl.baselines); "
+                             "several (format checkpoint): one agent with their averaged weights")
     parser.add_argument("destination", help="where to write the export (.onnx for onnx, .pt2 for torch_export)")
     parser.add_argument("--format", choices=FORMATS, default=None,
                         help="checkpoint (a slim checkpoint), onnx or torch_export; default: onnx for a .onnx "

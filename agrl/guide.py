@@ -3,7 +3,7 @@
 ::
 
     from agrl.guide import Guide
-    guide = Guide.load("baseline")          # or a checkpoint file, a run directory, a .onnx or .pt2 export
+    guide = Guide.load("baseline")          # or a checkpoint, a run directory, a .onnx or .pt2 export
     maneuver = guide.instruct((x, y, z, v, theta, psi, phi), (x_d, y_d, z_d, psi_d), last_action)   # int
     maneuvers = guide.instruct_batch(aircraft (N, 7), destination (N, 4), last_actions (N,))      # (N,) int64
 
@@ -129,7 +129,7 @@ def _from_metadata(text: str, path: Path) -> tuple[Airspace, AircraftLimits, str
 
 
 def load_policy(reference: str | Path = "baseline") -> tuple[GuidePolicy, str, str]:
-    """(:class:`GuidePolicy`, activation name, checkpoint path) of ``baseline``, a checkpoint or a run directory."""
+    """(:class:`GuidePolicy`, activation name, checkpoint path) of a shipped agent, a checkpoint or a run directory."""
     from agrl.config import saved_agent_config, saved_guidance_parameters
     from agrl.evaluate import load_agent
 
@@ -180,7 +180,8 @@ class Guide:
     # ------------------------------------------------------------------ loading
     @classmethod
     def load(cls, reference: str | Path = "baseline") -> Guide:
-        """``baseline``, a checkpoint file or run directory, or an export (``.onnx``, ``.pt2``)."""
+        """A shipped agent's name (``baseline``, ...), a checkpoint file or run directory, or an export (``.onnx``,
+        ``.pt2``)."""
         path = Path(reference)
         if path.suffix == ".onnx":
             return cls._load_onnx(path)

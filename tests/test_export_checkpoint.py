@@ -68,7 +68,8 @@ def test_a_missing_source_is_one_line(exported):
     assert result.returncode == 2, result.stderr[-3000:]
     lines = [line for line in result.stderr.splitlines() if line.strip()]
     assert lines == [f"agrl.export: error: {exported['directory'] / 'missing.pt'}: no such checkpoint file or run "
-                     "directory; allowed: a checkpoint file, a run directory, or baseline (the shipped agent)"]
+                     "directory; allowed: a checkpoint file, a run directory, or a shipped agent (baseline, "
+                     "baseline-stage1, baseline-both-terms, baseline-absolute)"]
     assert not (exported["directory"] / "never.pt").exists()
 
 

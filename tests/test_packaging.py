@@ -1,5 +1,7 @@
-"""pyproject.toml ships every config group of conf/ (setuptools ships data only from listed packages)."""
+"""pyproject.toml ships every config group of conf/ and every shipped agent (setuptools ships data only from listed
+packages and package-data patterns)."""
 
+import fnmatch
 import tomllib
 from pathlib import Path
 
@@ -14,3 +16,14 @@ def test_every_config_group_is_a_listed_package():
     listed = set(setuptools["packages"])
     assert groups <= listed, f"config groups missing from [tool.setuptools] packages: {sorted(groups - listed)}"
     assert "*.yaml" in setuptools["package-data"]["*"]
+
+
+def test_every_shipped_agent_and_its_evaluation_record_is_package_data():
+    from agrl.baselines import SHIPPED_AGENTS
+
+    patterns = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["agrl"]
+    for agent in SHIPPED_AGENTS.values():
+        for path in (agent.file, agent.evaluations_file):
+            relative = path.relative_to(REPO / "agrl").as_posix()
+            assert any(fnmatch.fnmatch(relative, pattern) for pattern in patterns), \
+                f"agrl/{relative} ({agent.name}) matches none of pyproject's agrl package-data: {patterns}"

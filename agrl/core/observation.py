@@ -207,7 +207,8 @@ OBSERVATIONS = {
     "relative": (policy_observation, OBSERVATION_FEATURES),
     "absolute": (absolute_observation, ABSOLUTE_OBSERVATION_FEATURES),
 }
-#: What a checkpoint written before ``agent.observation`` existed reads (the 2026-12-01 baseline among them).
+#: What a checkpoint written before ``agent.observation`` existed reads (the shipped ``baseline-both-terms`` among
+#: them).
 LEGACY_OBSERVATION = "relative"
 
 

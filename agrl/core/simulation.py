@@ -59,14 +59,14 @@ class DecisionResult(NamedTuple):
     outcome: torch.Tensor  # int64 Outcome code: RUNNING, SUCCESS or OUT_OF_AIRSPACE
 
 
-#: How inductor compiles the fused step (docs/benchmarks.md, 2026-12-02 evening, measured on a 2-core CPU):
+#: How inductor compiles the fused step (the simulator's throughput with and without them: docs/benchmarks.md):
 #: - ``cpp.min_chunk_size``: a CPU kernel gets several threads only from this many rows per thread (default
 #:   512). Inductor counts elements, not work, and one row here is ``substeps_per_call`` integration steps of
 #:   trigonometry; with the default, the collector's 512 rows ran on one thread, and so did the graph for changing
 #:   sizes whenever it was first compiled at fewer than 1 024 rows. Ignored on GPUs and with one thread.
 #: - ``max_fusion_size``: at most this many operations per fused kernel (default 64) cut the ten steps into
-#:   three loops over the rows, passing the state between them through memory. One loop: a decision of
-#:   4 096 rows takes 3.3 ms instead of 7.2-10.8, and the cold compilation is no longer.
+#:   three loops over the rows, passing the state between them through memory. One loop keeps the state in
+#:   registers for the whole decision, which more than halves its time, and the cold compilation is no longer.
 _INDUCTOR_OPTIONS = {"cpp.min_chunk_size": 1, "max_fusion_size": 100_000}
 
 

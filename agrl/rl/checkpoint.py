@@ -31,7 +31,7 @@ import torch
 from tensordict import TensorDict
 from tensordict._reductions import _make_td
 
-from agrl.baselines import BASELINE_FILE
+from agrl.baselines import SHIPPED_AGENTS, shipped_agent_names
 
 FORMAT_VERSION = 2
 #: The only non-plain objects a format-1 checkpoint holds (checked with
@@ -145,14 +145,16 @@ def load_module_state(module: torch.nn.Module, state: dict[str, torch.Tensor], p
 
 
 def resolve_checkpoint_path(reference: str | Path) -> Path:
-    """``baseline`` -> the shipped baseline; a run directory -> its ``checkpoints/latest.pt``; else the path."""
-    if str(reference) == "baseline":
-        if not BASELINE_FILE.is_file():
+    """A shipped agent's name (``baseline``, ... :data:`agrl.baselines.SHIPPED_AGENTS`) -> its file; a run
+    directory -> its ``checkpoints/latest.pt``; else the path. A name wins over a file of that name."""
+    agent = SHIPPED_AGENTS.get(str(reference))
+    if agent is not None:
+        if not agent.file.is_file():
             raise CheckpointError(
-                f"{BASELINE_FILE}: the shipped baseline is missing; train one with `python -m agrl.train` "
-                "and pass its checkpoint path instead of 'baseline'"
+                f"{agent.file}: the shipped agent {agent.name} is missing from this installation; reinstall agrl, or "
+                f"make one ({agent.made_by[0]}) and pass its checkpoint path instead of '{agent.name}'"
             )
-        return BASELINE_FILE
+        return agent.file
     path = Path(reference)
     if path.is_dir():
         candidate = path / "checkpoints" / "latest.pt"
@@ -161,7 +163,7 @@ def resolve_checkpoint_path(reference: str | Path) -> Path:
         return candidate
     if not path.exists():
         raise CheckpointError(f"{path}: no such checkpoint file or run directory; allowed: a checkpoint file, a run "
-                              "directory, or baseline (the shipped agent)")
+                              f"directory, or a shipped agent ({shipped_agent_names()})")
     return path
 
 
@@ -181,7 +183,7 @@ SLIM_KEYS = ("actor", "critic", "config", "config_yaml", "counters")
 def export_agent(source: str | Path, destination: str | Path, **extra: Any) -> Path:
     """Write a slim copy of a training checkpoint: networks, config and provenance, no optimiser or RNG.
 
-    This is what ships as ``agrl/baselines/fixed_baseline.pt`` (about a sixth of a full checkpoint).
+    This is what the shipped agents in ``agrl/baselines/`` are (about a sixth of a full checkpoint).
     """
     source = resolve_checkpoint_path(source)
     return _save_slim(load_checkpoint(source, required=("actor", "critic", "config")), source, destination, extra)
@@ -199,7 +201,7 @@ def average_agents(sources: list[str | Path], destination: str | Path, **extra: 
     """Write one slim checkpoint whose actor and critic weights are the element-wise means of ``sources``'.
 
     Meant for agents fine-tuned from one start, such as the seeds of ``+experiment=switch_finetune``: their
-    weights stay close, and their average (a "model soup") is an agent of its own, measured in
+    weights stay close, and their average (a "model soup") is an agent of its own, evaluated in
     docs/results/switch_cost.md. The config and counters are the first source's, ``exported_from`` names it and
     ``averaged_from`` lists them all. Agents whose networks differ in any parameter's name or shape are refused.
     """

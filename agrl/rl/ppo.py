@@ -26,7 +26,7 @@ def make_advantage(gamma: float, gae_lambda: float, critic, device: torch.device
 
 def make_loss(actor, critic, clip_epsilon: float, entropy_coeff: float, critic_coeff: float) -> ClipPPOLoss:
     # functional=False: the loss calls the actor and critic as they are. Functionalised parameters (the default)
-    # are for meta-RL and cost a parameter swap on every minibatch, about 10 % of an update here.
+    # are for meta-RL and cost a parameter swap on every minibatch, a noticeable share of an update here.
     return ClipPPOLoss(actor, critic, clip_epsilon=clip_epsilon, entropy_coeff=entropy_coeff,
                        critic_coeff=critic_coeff, normalize_advantage=True, loss_critic_type="smooth_l1",
                        functional=False)
@@ -36,9 +36,9 @@ class CompiledLoss(torch.nn.Module):
     """``loss`` with its forward and backward fused by ``torch.compile`` (``ppo.compile_loss``).
 
     The same function as ``loss`` (to float rounding; ``tests/rl/test_ppo.py``). A minibatch of 512 rows is a
-    few dozen small kernels and TensorDict bookkeeping in eager mode; compiled, the update took 0.76-0.83 x the time
-    in ``python -m agrl.bench_peer``, for a compilation on the first minibatch (1.5-2.1 s more
-    with inductor's cache warm), but ``make train`` was no shorter (docs/benchmarks.md, 2026-12-02 night).
+    few dozen small kernels and TensorDict bookkeeping in eager mode; compiled, the update is shorter in
+    ``python -m agrl.bench_peer``, for a compilation on the first minibatch, but ``make train`` as a whole was no
+    shorter with it (docs/benchmarks.md), so it is off by default.
     If compilation fails (no C++ compiler, an unsupported platform) it warns once and stays eager.
     """
 

@@ -14,11 +14,12 @@ from pathlib import Path
 import pytest
 import torch
 
-from agrl.baselines import BASELINE_FILE
+from agrl.baselines import BASELINE_FILE, SHIPPED_AGENTS
 from agrl.rl.metrics import flatten_config
 
 ROOT = Path(__file__).resolve().parents[2]
-STAGE_ONE_FILE = ROOT / "docs" / "results" / "baseline_2026-12-03" / "fixed_baseline.pt"
+#: make train's stage 1 as shipped (checkpoint=baseline-stage1), trained on the same defaults.
+STAGE_ONE_FILE = SHIPPED_AGENTS["baseline-stage1"].file
 #: Set per invocation, not by the recipe: where the run starts from and whether a progress bar is drawn.
 NOT_THE_RECIPE = {"progress", "method.baseline"}
 #: Options added after the shipped files were trained, at the value that trains exactly as before: a file without

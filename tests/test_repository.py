@@ -1,0 +1,137 @@
+"""What git tracks stays small: no run outputs, no large files outside the places meant for them.
+
+Run outputs (TensorBoard event files, checkpoints, per-episode tables) belong in ``runs/`` (ignored by
+``.gitignore``); what the docs cite from them is extracted into small files (``make report``), and agents that are
+inputs ship in ``agrl/baselines/`` (``python -m agrl.baselines``). The check reads the git index (``git ls-files``),
+so it sees what the next commit would hold; outside a git checkout (an installed wheel) it is skipped.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import shutil
+import subprocess
+import warnings
+from collections.abc import Iterable
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+MAX_FILE_BYTES = 1_000_000
+MAX_TREE_BYTES = 25_000_000
+#: Files allowed over MAX_FILE_BYTES (fnmatch patterns on the path; ``*`` also matches ``/``): the shipped agents
+#: and the documentation's figures. They still count towards MAX_TREE_BYTES.
+LARGE_FILES_ALLOWED = (
+    "agrl/baselines/*.pt",
+    "docs/results/figures/*",
+    "docs/*.png", "docs/*.svg", "docs/*.jpg", "docs/*.gif",
+)
+#: Raw run outputs that an earlier version tracked and that are being removed from git in steps (a submission has
+#: a size limit, so they cannot all go at once). Files under these folders are exempt from every check, and the
+#: test reports how many bytes are still there. Remove each folder from this tuple in the commit that untracks the
+#: last of its files (test_every_folder_being_removed_still_holds_tracked_files says when): it must end empty.
+BEING_REMOVED = (
+    "docs/results/runs/",
+    "docs/results/baseline/",
+    "docs/results/baseline_2026-11-22/",
+    "docs/results/baseline_2026-12-01/",
+    "docs/results/baseline_2026-12-03/",
+)
+
+
+def being_removed(path: str) -> bool:
+    return path.startswith(BEING_REMOVED)
+
+
+def repository_violations(files: Iterable[tuple[str, int]]) -> list[str]:
+    """One line per problem in a list of tracked files (path relative to the repository root, size in bytes):
+    a TensorBoard event file, a file over :data:`MAX_FILE_BYTES` outside :data:`LARGE_FILES_ALLOWED`, a tree over
+    :data:`MAX_TREE_BYTES`. Files under :data:`BEING_REMOVED` are left out."""
+    files = [(path, size) for path, size in files if not being_removed(path)]
+    problems = []
+    for path, size in files:
+        if ".tfevents." in Path(path).name:
+            problems.append(f"{path}: a TensorBoard event file is tracked; run outputs stay in runs/ (.gitignore), "
+                            "and make report extracts what the docs cite")
+        elif size > MAX_FILE_BYTES and not any(fnmatch.fnmatch(path, pattern) for pattern in LARGE_FILES_ALLOWED):
+            problems.append(f"{path}: {size} bytes tracked, over {MAX_FILE_BYTES}; allowed that large only: "
+                            f"{', '.join(LARGE_FILES_ALLOWED)} (run outputs stay in runs/, agents that are inputs "
+                            "ship in agrl/baselines/)")
+    total = sum(size for _, size in files)
+    if total > MAX_TREE_BYTES:
+        largest, size = max(files, key=lambda item: item[1])
+        problems.append(f"the tracked tree holds {total} bytes, over {MAX_TREE_BYTES} (the largest file: {largest}, "
+                        f"{size} bytes)")
+    return problems
+
+
+def tracked_files() -> list[tuple[str, int]]:
+    """(path, size in bytes) of every file in the git index, sizes from the stored blobs."""
+    if shutil.which("git") is None:
+        pytest.skip("git is not installed")
+    listing = subprocess.run(["git", "ls-files", "--stage", "-z"], cwd=ROOT, capture_output=True, timeout=60)
+    if listing.returncode != 0:
+        pytest.skip(f"{ROOT} is not a git checkout (an installed package): nothing tracked to check")
+    entries = [entry.split("\t", 1) for entry in listing.stdout.decode().split("\0") if entry]
+    entries = [(fields, path) for fields, path in entries if not fields.startswith("160000")]  # submodules: no blob
+    paths = [path for _, path in entries]
+    objects = [fields.split()[1] for fields, _ in entries]
+    sizes = subprocess.run(["git", "cat-file", "--batch-check=%(objectsize)"], cwd=ROOT, check=True, timeout=120,
+                           input="\n".join(objects) + "\n", capture_output=True, text=True).stdout.split()
+    assert len(sizes) == len(paths), "git cat-file answered for fewer objects than git ls-files listed"
+    return [(path, int(size)) for path, size in zip(paths, sizes, strict=True)]
+
+
+@pytest.fixture(scope="module")
+def files() -> list[tuple[str, int]]:
+    return tracked_files()
+
+
+def test_no_run_outputs_or_large_files_are_tracked(files):
+    problems = repository_violations(files)
+    assert not problems, problems[0] + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else "")
+    remaining = [size for path, size in files if being_removed(path)]
+    if remaining:
+        warnings.warn(f"{len(remaining)} tracked files, {sum(remaining)} bytes, are still in BEING_REMOVED "
+                      f"({', '.join(BEING_REMOVED)}): raw outputs to untrack", stacklevel=1)
+
+
+def test_every_folder_being_removed_still_holds_tracked_files(files):
+    emptied = [folder for folder in BEING_REMOVED if not any(path.startswith(folder) for path, _ in files)]
+    assert not emptied, (f"{emptied[0]} holds no tracked file any more: remove it from BEING_REMOVED in "
+                         "tests/test_repository.py")
+
+
+def test_each_violation_is_one_line_naming_the_file():
+    small = MAX_FILE_BYTES // 10
+    files = [
+        ("agrl/core/dynamics.py", small),
+        ("runs/fixed/scratch/run/tensorboard/events.out.tfevents.1764633600.host.1.0", small),
+        ("docs/results/data/episodes.csv", MAX_FILE_BYTES + 1),
+        ("agrl/baselines/fixed_baseline.pt", MAX_FILE_BYTES + 1),  # a shipped agent: allowed
+        ("docs/results/figures/moving.png", MAX_FILE_BYTES + 1),  # a doc figure: allowed
+        ("docs/results/runs/old/events.out.tfevents.1.host", 10 * MAX_TREE_BYTES),  # being removed: left out
+    ]
+    problems = repository_violations(files)
+    assert problems == [
+        "runs/fixed/scratch/run/tensorboard/events.out.tfevents.1764633600.host.1.0: a TensorBoard event file is "
+        "tracked; run outputs stay in runs/ (.gitignore), and make report extracts what the docs cite",
+        f"docs/results/data/episodes.csv: {MAX_FILE_BYTES + 1} bytes tracked, over {MAX_FILE_BYTES}; allowed that "
+        f"large only: {', '.join(LARGE_FILES_ALLOWED)} (run outputs stay in runs/, agents that are inputs ship in "
+        "agrl/baselines/)",
+    ]
+    assert all("\n" not in problem for problem in problems)
+
+
+def test_a_tree_over_the_limit_names_its_largest_file():
+    count = MAX_TREE_BYTES // MAX_FILE_BYTES + 1
+    files = [(f"docs/results/figures/figure_{index}.png", MAX_FILE_BYTES) for index in range(count)]
+    files.append(("docs/results/figures/largest.png", MAX_FILE_BYTES + 5))
+    total = count * MAX_FILE_BYTES + MAX_FILE_BYTES + 5
+    assert repository_violations(files) == [
+        f"the tracked tree holds {total} bytes, over {MAX_TREE_BYTES} (the largest file: "
+        f"docs/results/figures/largest.png, {MAX_FILE_BYTES + 5} bytes)"
+    ]
+    assert repository_violations(files[:3]) == []
