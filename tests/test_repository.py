@@ -34,10 +34,6 @@ LARGE_FILES_ALLOWED = (
 #: last of its files (test_every_folder_being_removed_still_holds_tracked_files says when): it must end empty.
 BEING_REMOVED = (
     "docs/results/runs/",
-    "docs/results/baseline/",
-    "docs/results/baseline_2026-11-22/",
-    "docs/results/baseline_2026-12-01/",
-    "docs/results/baseline_2026-12-03/",
 )
 
 
