@@ -29,9 +29,9 @@ Prints JSON lines: ``race_evaluation`` (one per evaluation), ``race_result`` per
 decisions to first reach each target, decisions/s, final and best success) and ``race_summary``
 (stable-baselines3's seconds to each target over agrl's).
 
-Example (the run in docs/benchmarks.md, "The learning race"; about 17 minutes on a quiet 2-core machine)::
+Example (the run in docs/benchmarks.md, "Not in `make bench`"; about 25 minutes on a quiet 2-core machine)::
 
-    python -m agrl.bench_race --budget-seconds 900 --eval-every 30 --threads 1
+    python -m agrl.bench_race --budget-seconds 1250 --eval-every 20 --threads 1
 """
 
 from __future__ import annotations

@@ -17,7 +17,8 @@ tested as the paper ran it.
 Several teachers make one ensemble teacher: the mean of their action probabilities (and of their values). With
 ``--observation relative`` this compresses agents fine-tuned from one start (``+experiment=switch_finetune``
 seeds) into one network of the usual size, which ``method=pretrained`` and ``method=reuse`` can start from
-(docs/results/switch_cost.md, "An ensemble of the five fine-tunes").
+(docs/results/switch_cost.md, "What did not get past 99.8 % at ≤ 7 instructions": such an ensemble flies as the
+seeds' weight average does).
 """
 
 from __future__ import annotations

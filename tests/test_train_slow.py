@@ -53,7 +53,8 @@ def test_methods_from_the_shipped_baseline_learn_uniform_20(tmp_path, run_cli, m
 def test_fast_recipe_reaches_its_target_on_fresh_episodes(tmp_path, run_cli):
     """``python -m agrl.train +experiment=fast``, seed 0, at most 60 iterations (the measured runs took 30-34):
     it stops at its target, and its agent succeeds on >= 99.5 % of 10 000 episodes from seed 777, which neither
-    trained it nor chose when it stopped (docs/results/ppo_geometry.md, "A faster recipe")."""
+    trained it nor chose when it stopped (docs/results/ppo_geometry.md, "`+experiment=fast`: stage 1 in about
+    25-30 s")."""
     run = tmp_path / "run"
     evaluation = train_and_read_evaluation(run_cli, run, "+experiment=fast", "seed=0",
                                            f"ppo.total_frames={60 * ITERATION}", timeout_minutes=30)

@@ -59,7 +59,8 @@ class DecisionResult(NamedTuple):
     outcome: torch.Tensor  # int64 Outcome code: RUNNING, SUCCESS or OUT_OF_AIRSPACE
 
 
-#: How inductor compiles the fused step (the simulator's throughput with and without them: docs/benchmarks.md):
+#: How inductor compiles the fused step (the simulator's throughput with and without them: docs/results/history.md,
+#: "Benchmarks", commit 4a77b09):
 #: - ``cpp.min_chunk_size``: a CPU kernel gets several threads only from this many rows per thread (default
 #:   512). Inductor counts elements, not work, and one row here is ``substeps_per_call`` integration steps of
 #:   trigonometry; with the default, the collector's 512 rows ran on one thread, and so did the graph for changing

@@ -72,8 +72,8 @@ def test_a_worker_run_learns(tmp_path, run_cli):
     episodes succeed more often after training than before. Seeded workers make the run reproducible (before they
     were, runs of the same code differed by as much as the margin asserted). It starts from the shipped
     baseline-both-terms, for which these 10 iterations were sized: from baseline-stage1, pre-training at 100 m/s
-    spends a few more iterations running out of decisions before success rises (docs/results/moving.md), so 10
-    iterations would not show the rise."""
+    spends a few more iterations running out of decisions before success rises (docs/training.md, "The slow
+    suite"), so 10 iterations would not show the rise."""
     run_dir = tmp_path / "run"
     result = run_cli("train", "task=uniform", "speed=100", "method=pretrained", "method.baseline=baseline-both-terms",
                      "seed=0", "ppo.collector_workers=2",
