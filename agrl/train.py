@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import logging
+import signal
 import sys
 from pathlib import Path
 
@@ -21,19 +22,32 @@ from omegaconf import DictConfig, OmegaConf
 
 from agrl.cli import RESUMABLE_OVERRIDES, refuse_unresumable, run_checked
 from agrl.config import ConfigError, load_config, override_key
-from agrl.rl.checkpoint import CheckpointError, checkpoint_run_directory, load_checkpoint, resolve_checkpoint_path
-from agrl.rl.stop_signals import PREEMPTED_EXIT_CODE, Preempted
+from agrl.rl.checkpoint import (
+    CheckpointError,
+    checkpoint_run_directory,
+    load_latest_checkpoint,
+    resolve_checkpoint_path,
+    set_aside_damaged,
+)
+from agrl.rl.stop_signals import PREEMPTED_EXIT_CODE, PREEMPTED_MARKER, Preempted
 
 log = logging.getLogger("agrl.train")
 
 
-def _resume_config(cfg: DictConfig, reference: str) -> tuple[DictConfig, dict, Path]:
-    path = resolve_checkpoint_path(reference)
-    payload = load_checkpoint(path, required=("actor", "critic", "optimizer", "counters", "carrier", "rng", "config"))
+def _resume_config(cfg: DictConfig, reference: str, requeued: bool = False) -> tuple[DictConfig, dict, Path]:
+    """The saved config of the checkpoint ``reference`` names, its payload and its run directory. The command
+    line may change only :data:`RESUMABLE_OVERRIDES`; a ``requeued`` run (the pre-empted command run again) takes
+    none of its overrides, which are the ones the checkpoint was made with."""
+    latest = resolve_checkpoint_path(reference)
+    path, payload, note = load_latest_checkpoint(
+        latest, required=("actor", "critic", "optimizer", "counters", "carrier", "rng", "config"))
+    if note:
+        log.warning("%s (the damaged file is kept as %s)", note, set_aside_damaged(latest))
+        path = latest
     payload["_path"] = str(path)
     # The composed config carries the typed group schemas; the run's saved values go on top.
     saved = OmegaConf.merge(cfg, payload["config"])
-    given = list(HydraConfig.get().overrides.task)
+    given = [] if requeued else list(HydraConfig.get().overrides.task)
     refuse_unresumable(given)  # checked before Hydra ran too (agrl.cli); here for callers of main() itself
     overrides = [override for override in given if override_key(override).startswith(RESUMABLE_OVERRIDES)]
     saved = OmegaConf.merge(saved, OmegaConf.from_dotlist(overrides))
@@ -48,8 +62,12 @@ def run(cfg: DictConfig) -> dict:
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     if cfg.get("resume"):
         cfg, payload, run_dir = _resume_config(cfg, cfg.resume)
+    elif (run_dir / "checkpoints" / PREEMPTED_MARKER).is_file():  # a requeued job, or the same command again
+        log.warning("%s was pre-empted: resuming it from its last checkpoint", run_dir)
+        cfg, payload, run_dir = _resume_config(cfg, str(run_dir), requeued=True)
     config = load_config(cfg)
     trainer = Trainer(config, run_dir, resume_payload=payload)
+    (run_dir / "checkpoints" / PREEMPTED_MARKER).unlink(missing_ok=True)  # resumed: written again if stopped again
     log.info("run directory: %s (tensorboard --logdir %s)", run_dir, run_dir)
     if payload is not None:
         log.info("resumed from %s after iteration %d (%d decisions)", payload["_path"],
@@ -60,6 +78,8 @@ def run(cfg: DictConfig) -> dict:
 
 @hydra.main(version_base="1.3", config_path="pkg://agrl.conf", config_name="config")
 def main(cfg: DictConfig) -> None:
+    if hasattr(signal, "SIGXFSZ"):  # over a file-size limit (ulimit -f): a failed write (one line), not a kill
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     try:
         summary = run(cfg)
     except (ConfigError, CheckpointError, ValueError) as error:  # ConfigError is a ValueError too

@@ -17,7 +17,7 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 
 from agrl.report import read_metrics
 from agrl.rl.checkpoint import CheckpointError, load_checkpoint
-from agrl.rl.stop_signals import PREEMPTED_EXIT_CODE
+from agrl.rl.stop_signals import PREEMPTED_EXIT_CODE, PREEMPTED_MARKER
 from agrl.rl.trainer import Trainer
 
 TRAINING_STATE = ("actor", "critic", "optimizer", "counters", "carrier", "rng", "config")
@@ -183,23 +183,27 @@ def test_ctrl_c_saves_latest_and_resume_continues(tmp_path, run_cli, tiny_args, 
 
 # ---------------------------------------------------------------------------- pre-emption
 @pytest.mark.usefixtures("torch_one_thread")
-@pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGUSR1], ids=["SIGTERM", "SIGUSR1"])
-def test_a_stop_signal_saves_latest_and_exits_to_be_resumed(tmp_path, run_cli, tiny_args, stop_signal):
-    """What Slurm (and submitit) send before a pre-emption or a time limit: a checkpoint newer than the signal, a
-    distinct exit code within 30 s, one line saying how to resume; the resume then finishes the run."""
+@pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGUSR1, signal.SIGUSR2],
+                         ids=["SIGTERM", "SIGUSR1", "SIGUSR2"])
+def test_a_stop_signal_saves_latest_and_the_same_command_resumes(tmp_path, run_cli, tiny_args, stop_signal):
+    """What Slurm and submitit send before a pre-emption or a time limit: a checkpoint newer than the signal, a
+    distinct exit code within 30 s, one line saying how to resume; the same command run again (a requeued job)
+    resumes the run and finishes it."""
     run = tmp_path / "run"
+    iterations = 12
     # No periodic `latest` (checkpoint_interval=1000): the checkpoint must come from the signal.
-    command = run_cli.command("train", *tiny_args({"ppo.total_frames": 10**9, "checkpoint_interval": 1000}),
-                              f"hydra.run.dir={run}")
+    arguments = (*tiny_args({"ppo.total_frames": 512 * iterations, "checkpoint_interval": 1000}),
+                 f"hydra.run.dir={run}")
     latest = run / "checkpoints" / "latest.pt"
     with (tmp_path / "stdout").open("w") as out, (tmp_path / "stderr").open("w") as err:
-        process = subprocess.Popen(command, cwd=run_cli.cwd, env=run_cli.environment(), stdout=out, stderr=err)
+        process = subprocess.Popen(run_cli.command("train", *arguments), cwd=run_cli.cwd, env=run_cli.environment(),
+                                   stdout=out, stderr=err)
         try:
             deadline = time.monotonic() + 120
             while len(read_metrics(run)) < 2:  # iteration 1 complete
                 assert process.poll() is None, (tmp_path / "stderr").read_text()[-3000:]
                 assert time.monotonic() < deadline, "two iterations did not finish within 120 s"
-                time.sleep(0.05)
+                time.sleep(0.02)
             assert not latest.exists()
             signalled = time.time()
             process.send_signal(stop_signal)
@@ -214,12 +218,17 @@ def test_a_stop_signal_saves_latest_and_exits_to_be_resumed(tmp_path, run_cli, t
     line = f"agrl.train: stopped by {stop_signal.name}: saved the last completed iteration to {latest}; " \
            f"resume with: python -m agrl.train resume={run}"
     assert line in stderr.splitlines(), stderr[-3000:]
-    iteration = load_checkpoint(latest, required=TRAINING_STATE)["counters"]["iteration"]
-    assert iteration >= 1
+    stopped_at = load_checkpoint(latest, required=TRAINING_STATE)["counters"]["iteration"]
+    assert 1 <= stopped_at < iterations
+    marker = run / "checkpoints" / PREEMPTED_MARKER
+    assert json.loads(marker.read_text()) == {"signal": stop_signal.name, "iteration": stopped_at}
 
-    resumed = run_cli("train", f"resume={run}", f"ppo.total_frames={512 * (iteration + 1)}")
-    assert resumed.returncode == 0, resumed.stderr[-3000:]
-    assert json.loads(resumed.stdout.splitlines()[-1])["iterations"] == iteration + 1
+    again = run_cli("train", *arguments)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert f"{run} was pre-empted: resuming it from its last checkpoint" in again.stdout
+    assert f"resumed from {latest} after iteration {stopped_at}" in again.stdout
+    assert json.loads(again.stdout.splitlines()[-1])["iterations"] == iterations
+    assert not marker.exists()
 
 
 # ---------------------------------------------------------------------------- command-line errors

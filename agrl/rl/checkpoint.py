@@ -21,6 +21,7 @@ import io
 import os
 import pickle
 import re
+import shutil
 import tempfile
 from importlib import metadata
 from pathlib import Path
@@ -57,16 +58,28 @@ def package_versions() -> dict[str, str]:
     return versions
 
 
-def save_checkpoint(payload: dict[str, Any], path: str | Path) -> Path:
-    """Write ``payload`` to ``path`` atomically: a temporary file in the same folder, then a rename.
+def previous_checkpoint_path(path: str | Path) -> Path:
+    """Where :func:`save_checkpoint` with ``keep_previous`` keeps the file it replaced: ``latest.previous.pt``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.previous{path.suffix}")
 
-    A crash or Ctrl-C during the write leaves the previous file at ``path`` intact.
+
+def save_checkpoint(payload: dict[str, Any], path: str | Path, keep_previous: bool = False) -> Path:
+    """Write ``payload`` to ``path`` atomically: a temporary file in the same folder, synced, then a rename.
+
+    A crash, Ctrl-C or kill -9 at any moment of the write leaves a whole file at ``path`` (the previous one or the
+    new one). With ``keep_previous``, the file it replaces stays as :func:`previous_checkpoint_path`, so a file
+    damaged later (a copy cut short, a bad disk) still has a readable predecessor; it is linked, not copied, so it
+    costs no disk space while both are the same. A write that fails (a full disk, a file-size limit) raises
+    :class:`CheckpointError` in one line and leaves the files there were.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = {"format_version": FORMAT_VERSION, "versions": package_versions(), **payload}
     buffer = io.BytesIO()
     torch.save(payload, buffer)
+    for stale in path.parent.glob(f".{path.name}.*.tmp"):  # left by a writer killed mid-write
+        stale.unlink(missing_ok=True)
     handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(handle, "wb") as file:
@@ -76,11 +89,63 @@ def save_checkpoint(payload: dict[str, Any], path: str | Path) -> Path:
         # mkstemp creates the file readable by its owner only; checkpoints are meant to be shared, so they get the
         # permissions any new file would (0666 less the umask), as torch.save would give them.
         os.chmod(temporary, 0o666 & ~_umask())
+        if keep_previous and path.is_file():
+            _keep_as_previous(path)
         os.replace(temporary, path)
+    except OSError as error:
+        Path(temporary).unlink(missing_ok=True)
+        raise CheckpointError(f"{path}: could not write the checkpoint ({error.strerror or error}); the files there "
+                              "before are kept") from None
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
     return path
+
+
+def _keep_as_previous(path: Path) -> None:
+    """Make :func:`previous_checkpoint_path` the file now at ``path``, atomically: a hard link under a temporary
+    name renamed over it (a copy where the filesystem has no hard links)."""
+    previous = previous_checkpoint_path(path)
+    temporary = previous.with_name(f".{previous.name}.link.tmp")
+    temporary.unlink(missing_ok=True)
+    try:
+        os.link(path, temporary)
+    except OSError:
+        shutil.copyfile(path, temporary)
+    os.replace(temporary, previous)
+
+
+def load_latest_checkpoint(path: str | Path, required: tuple[str, ...] = ("actor",)
+                           ) -> tuple[Path, dict[str, Any], str | None]:
+    """Read ``path``, or, if it is unreadable and the checkpoint it replaced (:func:`previous_checkpoint_path`) is
+    not, that one: ``(the file read, its payload, a one-line note saying why the previous one was read or None)``.
+    Raises :class:`CheckpointError` naming both files if neither can be read."""
+    path = Path(path)
+    try:
+        return path, load_checkpoint(path, required), None
+    except CheckpointError as error:
+        previous = previous_checkpoint_path(path)
+        if not previous.is_file():
+            raise
+        try:
+            payload = load_checkpoint(previous, required)
+        except CheckpointError as previous_error:
+            raise CheckpointError(f"{error}; and the one before it, {previous_error}") from None
+        return previous, payload, f"{error}; going on from the checkpoint before it, {previous}"
+
+
+def set_aside_damaged(path: str | Path) -> Path:
+    """Put the readable :func:`previous_checkpoint_path` back at ``path`` and keep the damaged file beside it as
+    ``<name>.damaged`` (for a look, never read): the run's checkpoints are whole again, and its next save keeps a
+    good previous one. Returns where the damaged file went."""
+    path = Path(path)
+    damaged = path.with_name(f"{path.name}.damaged")
+    if path.exists():
+        os.replace(path, damaged)
+    temporary = path.with_name(f".{path.name}.restore.tmp")
+    shutil.copyfile(previous_checkpoint_path(path), temporary)
+    os.replace(temporary, path)
+    return damaged
 
 
 def _umask() -> int:

@@ -1,19 +1,30 @@
 """Pre-emption: a scheduler's stop signal ends training at the next safe point, with a checkpoint.
 
-Slurm sends SIGTERM before it pre-empts or times out a job (``--signal`` can ask for SIGUSR1 earlier), and
-submitit relays it. Python's default for either is to die at once, losing every iteration since the last periodic
+Slurm sends SIGTERM before it pre-empts or times out a job (``--signal`` can ask for SIGUSR1 earlier); submitit
+sends its jobs SIGUSR2 (or ``$SUBMITIT_PREEMPT_SIGNAL``) and requeues them from its handler. Python's default for
+each is to die at once, and submitit's handler requeues at once, losing every iteration since the last periodic
 checkpoint. :class:`StopSignals` turns them into a flag that the training loop reads after each completed iteration
-(its safe point: the state is whole there), where the trainer saves ``latest`` and raises :class:`Preempted`.
+(its safe point: the state is whole there), where the trainer saves ``latest``, marks the run as pre-empted
+(:data:`PREEMPTED_MARKER`, so that the same command, run again, resumes it), hands the signal on to the handler it
+replaced (submitit's: the requeue) and raises :class:`Preempted`.
 """
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 from types import FrameType
 
-#: The signals that mean "stop soon, save first".
-STOP_SIGNALS = (signal.SIGTERM, signal.SIGUSR1)
+#: The signals that mean "stop soon, save first": Slurm's and submitit's.
+STOP_SIGNALS = tuple(dict.fromkeys((
+    signal.SIGTERM, signal.SIGUSR1, signal.SIGUSR2,
+    getattr(signal, f"SIG{os.environ.get('SUBMITIT_PREEMPT_SIGNAL', 'USR2')}", signal.SIGUSR2),
+)))
+
+#: In a run's ``checkpoints/``: the run stopped on a stop signal after saving ``latest.pt``; the same command run
+#: again in the same run directory (a requeued job) resumes it.
+PREEMPTED_MARKER = "preempted.json"
 
 #: ``python -m agrl.train``'s exit code after a pre-emption: EX_TEMPFAIL, "try again later" (sysexits.h).
 PREEMPTED_EXIT_CODE = 75
@@ -49,6 +60,16 @@ class StopSignals:
             for number in self.signals:
                 self._previous[number] = signal.signal(number, self._handle)
         return self
+
+    def forward(self) -> None:
+        """Hand the received signal on to the handler it replaced, if that was a Python function (submitit's,
+        which requeues the job and exits; a default or ignored signal is left as handled here)."""
+        if self.received is None:
+            return
+        number = signal.Signals[self.received]
+        previous = self._previous.get(number)
+        if callable(previous):
+            previous(number, None)
 
     def __exit__(self, *exc_info) -> None:
         for number, handler in self._previous.items():

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import json
 import logging
 import math
 import sys
@@ -63,7 +64,7 @@ from agrl.rl.run_state import (
     rng_states,
     seed_everything,
 )
-from agrl.rl.stop_signals import Preempted, StopSignals
+from agrl.rl.stop_signals import PREEMPTED_MARKER, Preempted, StopSignals
 
 __all__ = ["Counters", "Trainer", "TrainingDiverged"]
 
@@ -113,6 +114,7 @@ class Trainer:
         self.cfg = cfg
         self.run_dir = Path(run_dir)
         self.checkpoint_dir = self.run_dir / "checkpoints"
+        self._latest_saved_iteration: int | None = None  # see save()
         self.device = torch.device(cfg.device)
         self.frames_per_batch = cfg.ppo.num_envs * cfg.ppo.steps_per_env
         if cfg.threads is not None:
@@ -264,7 +266,17 @@ class Trainer:
             self.reuse.load_state_dict(payload["reuse"])
 
     def save(self, name: str, state: dict[str, Any] | None = None) -> Path:
-        return save_checkpoint(state or self._state(), self.checkpoint_dir / f"{name}.pt")
+        """Write checkpoint ``name``; ``latest`` keeps the one it replaces (``latest.previous.pt``), which a
+        resume reads if ``latest.pt`` was damaged after it was written."""
+        state = state or self._state()
+        path = self.checkpoint_dir / f"{name}.pt"
+        if name == "latest":
+            # The same iteration again (the end of a run whose last iteration was saved already) would make the
+            # kept previous checkpoint a copy of this one.
+            if state["counters"]["iteration"] == self._latest_saved_iteration and path.is_file():
+                return path
+            self._latest_saved_iteration = state["counters"]["iteration"]
+        return save_checkpoint(state, path, keep_previous=name == "latest")
 
     # ------------------------------------------------------------------ one iteration's parts
     def _advance_curriculum(self, metrics: dict[str, float]) -> None:
@@ -434,8 +446,11 @@ class Trainer:
             reason = self._finished() or self._target_reached(metrics)
             if stop.received:
                 path = self.save("latest", self._snapshot)
+                (self.checkpoint_dir / PREEMPTED_MARKER).write_text(json.dumps(
+                    {"signal": stop.received, "iteration": self.counters.iteration}))
                 preempted = Preempted(stop.received, str(path), str(self.run_dir))
                 log.warning("%s", preempted)
+                stop.forward()  # under submitit: its requeue, which exits
                 raise preempted
         return reason
 

@@ -56,3 +56,23 @@ def test_preempted_names_the_signal_the_checkpoint_and_the_resume_command():
     message = str(Preempted("SIGTERM", "run/checkpoints/latest.pt", "run"))
     assert message == ("stopped by SIGTERM: saved the last completed iteration to run/checkpoints/latest.pt; "
                        "resume with: python -m agrl.train resume=run")
+
+
+def test_forward_hands_the_signal_to_the_handler_it_replaced():
+    seen = []
+    previous = signal.signal(signal.SIGUSR2, lambda number, frame: seen.append(number))
+    try:
+        with StopSignals() as stop:
+            os.kill(os.getpid(), signal.SIGUSR2)
+            assert seen == []  # held while training goes on to its safe point
+            stop.forward()
+        assert seen == [signal.SIGUSR2]
+    finally:
+        signal.signal(signal.SIGUSR2, previous)
+
+
+def test_forward_leaves_a_default_handler_alone():
+    with StopSignals() as stop:
+        os.kill(os.getpid(), signal.SIGTERM)
+        stop.forward()  # SIG_DFL before: forwarding would kill the process
+    assert stop.received == "SIGTERM"
