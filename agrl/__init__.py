@@ -22,8 +22,10 @@ def _register_gym_env() -> None:
     except ImportError:  # gymnasium is a dependency; without it there is nothing to register
         return
     if GYM_ENV_ID not in gymnasium.registry:  # importing twice (or reloading) must not fail
+        # No PassiveEnvChecker (the test suite runs gymnasium's full check_env instead): in gymnasium 1.4 a first
+        # reset that raises (bad options) leaves it holding None, and a later step then fails inside it.
         gymnasium.register(id=GYM_ENV_ID, entry_point="agrl.envs.gym:GuidanceGymEnv",
-                           vector_entry_point="agrl.envs.gym_vector:GuidanceVectorEnv")
+                           vector_entry_point="agrl.envs.gym_vector:GuidanceVectorEnv", disable_env_checker=True)
 
 
 _register_gym_env()

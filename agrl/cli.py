@@ -25,9 +25,9 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, ListConfig, OmegaConf
 
-from agrl.baselines import shipped_agent_names
+from agrl.baselines import SHIPPED_AGENTS, shipped_agent_names
 from agrl.config import ConfigError, compose_checked, load_config, override_key
 
 #: Where a required value has no default, what it may be (shown when it is left out).
@@ -58,13 +58,14 @@ def writable_folder(path: str | Path) -> Path:
     """Create ``path``'s folder if needed; :class:`ConfigError` naming ``path`` if it cannot be written there
     (checked before the work, so that an unwritable output does not end a long run with a traceback)."""
     folder = Path(path).parent
-    blocking = next((above for above in (folder, *folder.parents) if above.exists() and not above.is_dir()), None)
+    try:
+        blocking = next((above for above in (folder, *folder.parents) if above.exists() and not above.is_dir()), None)
+        if blocking is None:
+            folder.mkdir(parents=True, exist_ok=True)
+    except (OSError, ValueError) as error:  # a name too long, a NUL byte, no permission
+        raise ConfigError(f"{path}: cannot be written: {getattr(error, 'strerror', None) or error}") from None
     if blocking is not None:
         raise ConfigError(f"{path}: cannot be written: {blocking} is a file, not a folder")
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise ConfigError(f"{path}: cannot be written: {error.strerror or error}") from None
     if not os.access(folder, os.W_OK):
         raise ConfigError(f"{path}: cannot be written: {folder} is not writable")
     return folder
@@ -90,7 +91,15 @@ def _candidates(overrides: list[str], multirun: bool) -> list[list[str]]:
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)
     except OverrideParseException as error:
-        raise ConfigError(str(error).strip().splitlines()[0]) from None
+        # Hydra's message: maybe "Error parsing override '...'", the parser's reason, a caret line, a link.
+        lines = [line.strip() for line in str(error).splitlines()]
+        reasons = [line for line in lines if line and not line.startswith(("Error parsing override", "See https", "^"))]
+        override = error.override
+        shown = override if override.isprintable() and override.strip() == override != "" else repr(override)
+        reason = reasons[0].removeprefix("LexerNoViableAltException:").strip() if reasons else ""
+        if reason in ("", override.strip()):  # the lexer names only the override: say what it is not
+            reason = "not key=value in Hydra's override grammar (quote a value with special characters)"
+        raise ConfigError(f"{shown} is not allowed: {reason}") from None
     sweeps = {}
     for index, override in enumerate(parsed):
         if override.is_sweep_override():
@@ -121,6 +130,20 @@ def _refuse_added_keys(overrides: list[str], config_name: str) -> None:
                               f"{', '.join(str(key) for key in node.keys())}")
 
 
+def _refuse_unresolvable(overrides: list[str], config: DictConfig) -> None:
+    """An override whose value is an interpolation (``seed=${foo}``) must resolve, to a value of its key's type:
+    else :class:`ConfigError` naming it (OmegaConf would name neither the override nor, often, the key)."""
+    for override in overrides:
+        if "${" not in override:
+            continue
+        try:
+            node = OmegaConf.select(config, override_key(override), throw_on_resolution_failure=True)
+            if isinstance(node, (DictConfig, ListConfig)):
+                OmegaConf.to_container(node, resolve=True)
+        except Exception as error:  # OmegaConf's interpolation, resolver and type errors
+            raise ConfigError(f"{override} is not allowed: {str(error).strip().splitlines()[0]}") from None
+
+
 def check_overrides(arguments: Sequence[str], config_name: str) -> DictConfig | None:
     """Raise :class:`ConfigError` (one line) if the command line's overrides do not make a valid config; return
     the composed config (None for a multirun or Hydra's own modes).
@@ -144,6 +167,7 @@ def check_overrides(arguments: Sequence[str], config_name: str) -> DictConfig | 
     composed = []
     for candidate in candidates:
         config = compose_checked(*candidate, config_name=config_name)
+        _refuse_unresolvable(candidate, config)
         _refuse_added_keys(candidate, config_name)
         composed.append(config)
         if config.get("resume"):
@@ -166,10 +190,17 @@ def _check_checkpoint(key: str, reference: str) -> None:
     read here: the run reads it, safely, and says what is wrong with its content)."""
     from agrl.rl.checkpoint import CheckpointError, resolve_checkpoint_path  # torch: only where a path is checked
 
+    if key == "resume" and str(reference) in SHIPPED_AGENTS:  # not a training run: nothing to resume, and its
+        # folder (inside the installed package) would become the run directory
+        raise ConfigError(f"resume={reference} is not allowed: {reference} is a shipped agent, not a training run; "
+                          f"allowed: a run directory or its checkpoint (to start from {reference}: "
+                          f"method=pretrained method.baseline={reference})")
     try:
         resolve_checkpoint_path(reference)
     except CheckpointError as error:
         raise ConfigError(f"{key}: {error}") from None
+    except (OSError, ValueError) as error:  # a name too long for the file system, a NUL byte
+        raise ConfigError(f"{key}={reference} is not allowed: {getattr(error, 'strerror', None) or error}") from None
 
 
 def resume_in_place(arguments: Sequence[str], config: DictConfig | None) -> list[str]:

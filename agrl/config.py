@@ -30,6 +30,13 @@ class ConfigError(ValueError):
     """A configuration value is out of range; the message is one line."""
 
 
+def one_line(value: Any, limit: int = 200) -> str:
+    """``repr(value)`` for a one-line error message: on one line (a numpy array or a tensor of several rows
+    prints them on lines of their own) and cut to ``limit`` characters."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= limit else f"{text[:limit]}..."
+
+
 def _require(condition: bool, key: str, value: Any, allowed: str) -> None:
     if not condition:
         raise ConfigError(f"{key}={value!r} is not allowed: {allowed}")

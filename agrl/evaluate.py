@@ -44,13 +44,13 @@ def load_agent(reference: str, device: torch.device | str = "cpu"):
 
 def check_inputs(config) -> None:
     """What the evaluation reads and writes, checked before Hydra runs (agrl.cli.run_checked calls this): the
-    checkpoint loads, and ``output_dir`` (if given) can be written."""
+    checkpoint loads, and ``output_dir`` (if given) can be written (checked last: it creates the folder)."""
+    load_agent(config.checkpoint)
     if config.output_dir:
         try:
             writable_folder(Path(config.output_dir) / "eval.json")
         except ConfigError as error:
             raise ConfigError(f"output_dir={config.output_dir} is not allowed: {error}") from None
-    load_agent(config.checkpoint)
 
 
 def evaluate(cfg) -> dict[str, Any]:

@@ -31,6 +31,7 @@ import dataclasses
 import json
 import math
 import threading
+from collections.abc import Mapping, Set
 from pathlib import Path
 from typing import Any
 
@@ -38,12 +39,14 @@ import numpy as np
 import torch
 from torch import nn
 
+from agrl.config import one_line
 from agrl.core.aircraft import MANEUVER_NAMES, AircraftLimits
 from agrl.core.observation import policy_observation
 from agrl.core.termination import Airspace
 from agrl.envs.rows import observation_row
 
 NUM_MANEUVERS = len(MANEUVER_NAMES)
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 #: Key of the JSON metadata (airspace, limits, source) stored in ONNX and torch.export files.
 METADATA_KEY = "agrl_guide"
 INPUT_NAMES = ("aircraft_state", "destination_state", "last_action")
@@ -145,15 +148,46 @@ def load_policy(reference: str | Path = "baseline") -> tuple[GuidePolicy, str, s
     return policy, saved["agent"]["activation"], str(path)
 
 
+def _array(values, name: str) -> np.ndarray:
+    """``np.asarray(values)``, or :class:`GuideError` naming ``values`` if they nest raggedly."""
+    try:
+        return np.asarray(values)
+    except ValueError:
+        raise GuideError(f"{name}={one_line(values)} is not allowed: an array (ragged nesting)") from None
+
+
 def _rows(values, width: int, name: str) -> np.ndarray:
-    array = np.asarray(values, dtype=np.float32)
-    if array.ndim != 2 or array.shape[1] != width or not np.isfinite(array).all():
+    array = _array(values, name)
+    if array.ndim != 2 or array.shape[1] != width:
         raise GuideError(f"{name} of shape {array.shape} is not allowed: (N, {width}) finite numbers")
+    if array.dtype.kind not in "iuf":  # characters, truth values, None or other objects
+        raise GuideError(f"{name} of dtype {array.dtype} is not allowed: (N, {width}) finite numbers")
+    with np.errstate(over="ignore"):  # beyond float32's range: not finite, refused below
+        array = array.astype(np.float32, copy=False)
+    finite = np.isfinite(array).all(axis=1)
+    if not finite.all():
+        row = int(np.flatnonzero(~finite)[0])
+        raise GuideError(f"{name}[{row}]={one_line(np.asarray(values)[row].tolist())} is not allowed: (N, {width}) "
+                         "finite numbers (float32)")
     return array
 
 
+def _numbers(values, width: int) -> list[float] | None:
+    """``values`` as ``width`` floats finite in float32 (what the guide computes in), or None."""
+    try:
+        items = list(values)
+        if isinstance(values, (str, bytes, Mapping, Set)) or any(
+                isinstance(item, (str, bytes, bool, np.bool_)) for item in items):
+            return None  # characters, keys, unordered items or truth values: not a state's numbers in order
+        numbers = [float(item) for item in items]
+    except (TypeError, ValueError, OverflowError):
+        return None
+    finite = all(math.isfinite(number) and abs(number) <= FLOAT32_MAX for number in numbers)
+    return numbers if len(numbers) == width and finite else None
+
+
 def _actions(values, count: int) -> np.ndarray:
-    array = np.asarray(values)
+    array = _array(values, "last_action")
     if (array.shape != (count,) or not np.issubdtype(array.dtype, np.integer)
             or not bool(((array >= 0) & (array < NUM_MANEUVERS)).all())):
         raise GuideError(f"last_action of shape {array.shape} and dtype {array.dtype} is not allowed: "
@@ -227,18 +261,14 @@ class Guide:
     # ------------------------------------------------------------------ questions
     def instruct(self, aircraft_state, destination_state, last_action) -> int:
         """The maneuver index for one aircraft (x, y, z, v, theta, psi, phi) and destination (x, y, z, psi)."""
-        try:
-            aircraft = [float(value) for value in aircraft_state]
-            destination = [float(value) for value in destination_state]
-        except (TypeError, ValueError):
-            raise GuideError(f"aircraft_state={aircraft_state!r}, destination_state={destination_state!r} are not "
-                             "allowed: 7 and 4 numbers") from None
-        if len(aircraft) != 7 or len(destination) != 4 or not all(map(math.isfinite, aircraft + destination)):
-            raise GuideError(f"aircraft_state={aircraft_state!r}, destination_state={destination_state!r} are not "
-                             "allowed: 7 and 4 finite numbers")
+        aircraft, destination = _numbers(aircraft_state, 7), _numbers(destination_state, 4)
+        if aircraft is None or destination is None:
+            raise GuideError(f"aircraft_state={one_line(aircraft_state)}, destination_state="
+                             f"{one_line(destination_state)} are not allowed: 7 and 4 finite numbers (float32)")
         if isinstance(last_action, bool) or not isinstance(last_action, (int, np.integer)) or not (
                 0 <= last_action < NUM_MANEUVERS):
-            raise GuideError(f"last_action={last_action!r} is not allowed: an integer in [0, {NUM_MANEUVERS - 1}]")
+            raise GuideError(f"last_action={one_line(last_action)} is not allowed: an integer in "
+                             f"[0, {NUM_MANEUVERS - 1}]")
         if not self._layers:
             return int(self._run(np.array([aircraft], np.float32), np.array([destination], np.float32),
                                  np.array([last_action], np.int64))[0])

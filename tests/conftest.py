@@ -28,6 +28,13 @@ from pathlib import Path
 
 import pytest
 import torch
+from hypothesis import HealthCheck, settings
+
+# Property-based tests (tests/*_inputs.py): the same examples on every run and machine, no example database
+# written into the working directory, no per-example deadline (a first call imports and composes).
+settings.register_profile("agrl", derandomize=True, database=None, deadline=None, print_blob=False,
+                          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+settings.load_profile("agrl")
 
 CONF_DIR = (Path(__file__).resolve().parent.parent / "conf").resolve()
 
@@ -165,14 +172,14 @@ def cli_workdir(tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def run_cli(cli_workdir):
     """``run_cli("train", *overrides)`` -> CompletedProcess of ``python -m agrl.train ...``;
-    ``run_cli.batch({"name": ("train", *overrides), ...})`` runs several at once
+    ``run_cli.batch({"name": ("train", *overrides), ...})`` runs several at once (``cwd=``: in another folder)
     and returns {name: CompletedProcess}."""
 
     def run(module: str, *args: str, timeout: float = 300) -> subprocess.CompletedProcess:
         return _run_cli(module, *args, cwd=cli_workdir, timeout=timeout)
 
-    def batch(jobs: dict[str, tuple[str, ...]], timeout: float = 300) -> dict:
-        return _run_cli_batch(jobs, cwd=cli_workdir, timeout=timeout)
+    def batch(jobs: dict[str, tuple[str, ...]], timeout: float = 300, cwd: Path | None = None) -> dict:
+        return _run_cli_batch(jobs, cwd=cwd or cli_workdir, timeout=timeout)
 
     run.batch = batch
     run.command = _cli_command

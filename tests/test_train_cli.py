@@ -253,6 +253,9 @@ ONE_LINE_ERRORS = {
                           "checkpoint file, a run directory, or a shipped agent (baseline, baseline-stage1, "
                           "baseline-both-terms, baseline-absolute)",)),
     "resume-missing": (("resume=no/such/run",), ("resume: no/such/run: no such checkpoint file or run directory",)),
+    "resume-shipped-agent": (("resume=baseline",),
+                             ("resume=baseline is not allowed: baseline is a shipped agent, not a training run",
+                              "method=pretrained method.baseline=baseline")),
     "baseline-other-networks": (("method=pretrained", "method.baseline=baseline", "agent.actor_hidden=[64,64]"),
                                 ("fixed_baseline.pt: the actor network does not match this configuration",
                                  "module.0.module.0.weight (64, 23) here, (128, 23) in the file")),

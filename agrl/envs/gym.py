@@ -32,6 +32,7 @@ import functools
 import math
 import os
 import sys
+from collections.abc import Mapping
 from typing import Any
 
 import gymnasium
@@ -39,7 +40,7 @@ import numpy as np
 import torch
 from gymnasium import spaces
 
-from agrl.config import TASK_PARAMETERS, ConfigError, config_options, tasks_taking
+from agrl.config import TASK_PARAMETERS, ConfigError, config_options, one_line, tasks_taking
 from agrl.config import guidance_parameters as composed_guidance_parameters
 from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.destinations import redraw_irregular_motion
@@ -54,7 +55,19 @@ ENV_ID = "agrl/Guidance-v0"
 _OUTCOME_NAMES = tuple(outcome.name.lower() for outcome in Outcome)  # indexed by the Outcome code
 
 def _fail(name: str, value: Any, allowed: str) -> None:
-    raise ValueError(f"{name}={value!r} is not allowed: {allowed}")
+    raise ValueError(f"{name}={one_line(value)} is not allowed: {allowed}")
+
+
+#: Seeds both generators take (gymnasium's numpy one and the env's torch one).
+SEED_LIMIT = 2**64
+
+
+def checked_seed(seed: Any, allowed: str = "None or an integer in [0, 2**64 - 1]") -> int | None:
+    """``reset(seed=...)`` as a Python int (None stays None); ``ValueError`` naming it if it is no such seed."""
+    integral = isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)
+    if seed is not None and not (integral and 0 <= seed < SEED_LIMIT):
+        _fail("seed", seed, allowed)
+    return None if seed is None else int(seed)
 
 
 def _finite_positive(name: str, value: Any, task: str, what: str) -> float:
@@ -127,22 +140,56 @@ SCENARIO_WIDTHS = {
     "destination_speed": (0, "a finite speed (m/s)"),
     "destination_turn_rate": (0, "a finite turn rate (rad/s)"),
 }
+#: The largest destination turn rate a scenario may give (rad/s): half a turn per second, far beyond any task's.
+MAX_DESTINATION_TURN_RATE = math.pi
 
 
-def scenario_reset(env: GuidanceEnv, options: dict[str, Any]):
-    """``reset(options=...)``'s initial conditions as a :meth:`GuidanceEnv.scenario` (single and vector env)."""
-    unknown = sorted(set(options) - set(SCENARIO_KEYS))
-    if unknown or "aircraft_state" not in options:
-        _fail("options", options, f"a dict with aircraft_state and optionally {', '.join(SCENARIO_KEYS[1:])}")
+def _scenario_ranges(params: GuidanceParameters) -> dict[str, list[tuple[int | None, float, float, str]]]:
+    """Per scenario entry, (column or None, low, high, what) of the values the simulator takes: positions inside
+    the airspace (equation 1), the aircraft's speed and flight-path angle within its limits, the destination no
+    faster than the aircraft can fly. Beyond them an episode means nothing, and float32 overflows to NaN."""
+    space, limits = params.simulation.airspace, params.simulation.limits
+    box = f"inside the airspace x [{space.x_min:g}, {space.x_max:g}], y [{space.y_min:g}, {space.y_max:g}], " \
+          f"z [{space.z_min:g}, {space.z_max:g}] m"
+    position = [(0, space.x_min, space.x_max, box), (1, space.y_min, space.y_max, box),
+                (2, space.z_min, space.z_max, box)]
+    angle = limits.max_flight_path_angle
+    return {
+        "aircraft_state": [*position, (3, limits.min_speed, limits.max_speed,
+                                       f"v in [{limits.min_speed:g}, {limits.max_speed:g}] m/s"),
+                           (4, -angle, angle, f"theta in [{-angle:.4g}, {angle:.4g}] rad")],
+        "destination_state": position,
+        "destination_speed": [(None, 0.0, limits.max_speed, f"in [0, {limits.max_speed:g}] m/s")],
+        "destination_turn_rate": [(None, -MAX_DESTINATION_TURN_RATE, MAX_DESTINATION_TURN_RATE,
+                                   f"in [-{MAX_DESTINATION_TURN_RATE:.4g}, {MAX_DESTINATION_TURN_RATE:.4g}] rad/s")],
+    }
+
+
+def scenario_reset(env: GuidanceEnv, options: Any):
+    """``reset(options=...)``'s initial conditions as a :meth:`GuidanceEnv.scenario` (single and vector env), or
+    None for no options (None or an empty dict). Each entry holds one row for every env or a row per env."""
+    if options is None or (isinstance(options, Mapping) and not options):
+        return None
+    keys = f"a dict with aircraft_state and optionally {', '.join(SCENARIO_KEYS[1:])}"
+    if not isinstance(options, Mapping) or set(options) - set(SCENARIO_KEYS) or "aircraft_state" not in options:
+        _fail("options", options, keys)
+    count = env.batch_size.numel()
+    rows = "one row" if count == 1 else f"one row for all {count} envs or one per env"
+    ranges = _scenario_ranges(env.params)
     values = {}
     for key, value in options.items():
         width, allowed = SCENARIO_WIDTHS[key]
+        shapes = {(width,), (1, width), (count, width)} if width else {(), (1,), (count,)}
         try:
-            array = np.asarray(value, dtype=np.float32)
-        except (TypeError, ValueError):
+            array = None if isinstance(value, (str, bytes)) else np.asarray(value, dtype=np.float32)
+        except (TypeError, ValueError, OverflowError):
             array = None
-        if array is None or not np.isfinite(array).all() or (width and (array.ndim == 0 or array.shape[-1] != width)):
-            _fail(key, value, allowed)
+        if array is None or array.shape not in shapes or not np.isfinite(array).all():
+            _fail(key, value, f"{allowed}; {rows}")
+        for column, low, high, what in ranges[key]:
+            inside = array if column is None else array[..., column]
+            if not ((inside >= low) & (inside <= high)).all():
+                _fail(key, value, what)
         values[key] = torch.as_tensor(array)
     return env.scenario(**values)
 
@@ -277,12 +324,14 @@ class GuidanceGymEnv(gymnasium.Env):
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        seed = checked_seed(seed)
         super().reset(seed=seed)
         if seed is not None:
-            self.env.set_seed(int(seed))
-        if options:
-            with torch.no_grad():
-                state = scenario_reset(self.env, options)["scenario"]
+            self.env.set_seed(seed)
+        with torch.no_grad():
+            scenario = scenario_reset(self.env, options)
+        if scenario is not None:
+            state = scenario["scenario"]
             self._aircraft = tuple(state["aircraft_state"][0].tolist())
             self._destination = tuple(state["destination_state"][0].tolist())
             self._destination_speed = float(state["destination_speed"][0])
@@ -311,9 +360,11 @@ class GuidanceGymEnv(gymnasium.Env):
             raise RuntimeError("agrl/Guidance-v0: call reset() before step() (and after an episode ends)")
         if not (isinstance(action, (int, np.integer)) and 0 <= action < NUM_ACTIONS):
             try:
+                if isinstance(action, (str, bytes)):  # "2" is a name, not a maneuver index
+                    raise TypeError
                 index = int(action)
                 integral = float(action) == index  # 2.0 is maneuver 2; 2.5 is no maneuver
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):
                 index, integral = None, False
             if not integral or not self.action_space.contains(index):
                 _fail("action", action, f"an integer maneuver index in [0, {NUM_ACTIONS - 1}]")

@@ -36,7 +36,7 @@ from gymnasium.vector.utils import batch_space
 
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import NUM_ACTIONS, SCENARIO_KEYS, GuidanceEnv
-from agrl.envs.gym import _fail, guidance_parameters, observation_bounds, scenario_reset
+from agrl.envs.gym import _fail, checked_seed, guidance_parameters, observation_bounds, scenario_reset
 
 #: Entries of the TorchRL state that make a row's state (what a reset replaces).
 _ROW_KEYS = (*SCENARIO_KEYS, "last_action", "action_before_last", "step_count", "episode_return",
@@ -123,7 +123,10 @@ class GuidanceVectorEnv(VectorEnv):
         return state
 
     def _actions(self, actions) -> torch.Tensor:
-        array = np.asarray(actions)
+        try:
+            array = np.asarray(actions)
+        except ValueError:  # ragged nesting
+            _fail("actions", actions, f"{self.num_envs} integer maneuver indices in [0, {NUM_ACTIONS - 1}]")
         valid = (array.shape == (self.num_envs,) and np.issubdtype(array.dtype, np.integer)
                  and bool(((array >= 0) & (array < NUM_ACTIONS)).all()))
         if not valid:
@@ -136,13 +139,13 @@ class GuidanceVectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
-            _fail("seed", seed, "None or one integer (one batched generator drives every row)")
+        seed = checked_seed(seed, "None or one integer in [0, 2**64 - 1] (one batched generator drives every row)")
         super().reset(seed=seed)
         if seed is not None:
-            self.env.set_seed(int(seed))
+            self.env.set_seed(seed)
         with torch.no_grad():
-            self._state = self.env.reset(scenario_reset(self.env, options)) if options else self.env.reset()
+            scenario = scenario_reset(self.env, options)
+            self._state = self.env.reset(scenario) if scenario is not None else self.env.reset()
         self._autoreset[:] = False
         return self._outputs(self._state)
 
