@@ -10,7 +10,7 @@ ARGS ?=
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --upgrade pip >/dev/null
-	$(PY) -m pip install -e ".[dev]"
+	$(PY) -m pip install -e ".[dev,bench]"
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -60,13 +60,15 @@ wheel-check:
 test-slow: install
 	$(PY) -m pytest -m slow
 
+# The benchmarks beside the package (benchmarks/, not in the wheel), run from the repository root: one JSON object
+# per line (docs/benchmarks.md). ARGS: extra options for benchmarks.bench (e.g. ARGS="--threads 1").
 bench: install
-	$(PY) -m agrl.bench $(ARGS)
-	$(PY) -m agrl.bench_reuse
-	$(PY) -m agrl.bench_peer --trainers agrl agrl-compiled stable-baselines3 floor
+	$(PY) -m benchmarks.bench $(ARGS)
+	$(PY) -m benchmarks.bench_reuse
+	$(PY) -m benchmarks.bench_peer --trainers agrl agrl-compiled stable-baselines3 floor
 
 lint: install
-	$(PY) -m ruff check agrl tests
+	$(PY) -m ruff check agrl tests benchmarks
 
 # The reproductions summarised in docs/results/ (hours of CPU; see those pages for the budgets used). Table 3's eighth
 # row (runs/table3_stage2) fine-tunes the shipped stage-1 agent (checkpoint=baseline-stage1, python -m agrl.baselines).

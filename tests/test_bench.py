@@ -1,22 +1,27 @@
-"""Smoke test of ``python -m agrl.bench --quick``: output format only, no timing assertions."""
+"""Smoke tests of the benchmarks beside the package (``python -m benchmarks.bench --quick``, ``bench_peer``,
+``bench_race``): output format only, no timing assertions. Those that run stable-baselines3 skip without it (the
+``bench`` extra, which ``make install`` installs)."""
 
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from agrl.bench import parse_args
+from benchmarks.bench import parse_args
 
+#: ``python -m benchmarks.<name>`` imports the benchmarks from the repository root.
+REPO = Path(__file__).resolve().parents[1]
 REQUIRED = {"name", "value", "unit"}
 
 
 def test_quick_run_prints_json_lines():
-    command = [sys.executable, "-m", "agrl.bench", "--quick", "--batch-sizes", "8", "32", "--env-batch", "8"]
-    completed = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    command = [sys.executable, "-m", "benchmarks.bench", "--quick", "--batch-sizes", "8", "32", "--env-batch", "8"]
+    completed = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=REPO)
     assert completed.returncode == 0, completed.stderr
     lines = [line for line in completed.stdout.splitlines() if line.strip()]
     records = [json.loads(line) for line in lines]  # every line is one JSON object
@@ -58,10 +63,10 @@ def test_arguments():
 
 
 def test_stable_baselines3_sees_the_vector_env_through_the_adapter():
-    """python -m agrl.bench_peer's adapter: SB3's VecEnv contract (same-step reset, terminal_observation)."""
-    from stable_baselines3 import PPO
+    """python -m benchmarks.bench_peer's adapter: SB3's VecEnv contract (same-step reset, terminal_observation)."""
+    PPO = pytest.importorskip("stable_baselines3").PPO
 
-    from agrl.bench_peer import make_sb3_vector_env
+    from benchmarks.bench_peer import make_sb3_vector_env
 
     env = make_sb3_vector_env(4, compile=False, seed=0, task="fixed", max_decisions=2)
     observations = env.reset()
@@ -82,7 +87,7 @@ def test_stable_baselines3_sees_the_vector_env_through_the_adapter():
 
 
 def test_iteration_record_reports_the_median_split():
-    from agrl.bench_peer import iteration_record
+    from benchmarks.bench_peer import iteration_record
 
     record = iteration_record("agrl", collection=[1.0, 3.0, 2.0], update=[4.0, 1.0, 2.0], decisions=100)
     assert record["collection_s"] == 2.0 and record["update_s"] == 2.0
@@ -91,12 +96,13 @@ def test_iteration_record_reports_the_median_split():
 
 
 def test_peer_benchmark_prints_the_split_for_each_trainer_and_the_ratios():
-    """``python -m agrl.bench_peer`` at a tiny geometry: one iteration line per trainer (agrl, agrl with the
+    """``python -m benchmarks.bench_peer`` at a tiny geometry: one iteration line per trainer (agrl, agrl with the
     compiled loss, SB3 and the plain PyTorch floor), then each one's ratio to SB3."""
-    command = [sys.executable, "-m", "agrl.bench_peer", "--num-envs", "16", "--steps", "8", "--iterations", "2",
+    pytest.importorskip("stable_baselines3")
+    command = [sys.executable, "-m", "benchmarks.bench_peer", "--num-envs", "16", "--steps", "8", "--iterations", "2",
                "--minibatch", "64", "--no-compile", "--threads", "1", "--trainers", "agrl", "agrl-compiled",
                "stable-baselines3", "floor"]
-    completed = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    completed = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=REPO)
     assert completed.returncode == 0, completed.stderr
     records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
     assert [record["name"] for record in records] == ["ppo_iteration_seconds"] * 4 + [
@@ -114,12 +120,14 @@ def test_peer_benchmark_prints_the_split_for_each_trainer_and_the_ratios():
 
 
 def test_race_prints_both_trainers_evaluations_and_results():
-    """``python -m agrl.bench_race`` with a budget of seconds: both trainers train, both fly the same evaluation set."""
-    command = [sys.executable, "-m", "agrl.bench_race", "--budget-seconds", "2", "--eval-every", "1",
+    """``python -m benchmarks.bench_race`` with a budget of seconds: both trainers train, both fly the same evaluation
+    set."""
+    pytest.importorskip("stable_baselines3")
+    command = [sys.executable, "-m", "benchmarks.bench_race", "--budget-seconds", "2", "--eval-every", "1",
                "--eval-episodes", "8", "--max-decisions", "4", "--no-compile", "--threads", "1",
                "--sb3-geometry", "agrl", "--agrl-override", "ppo.num_envs=16", "ppo.steps_per_env=4",
                "ppo.minibatch_size=32"]
-    completed = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    completed = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=REPO)
     assert completed.returncode == 0, completed.stderr
     records = [json.loads(line) for line in completed.stdout.splitlines() if line.strip()]  # JSON lines only
     assert all(REQUIRED <= set(record) for record in records)
@@ -149,8 +157,8 @@ def test_race_prints_both_trainers_evaluations_and_results():
 
 
 def test_race_result_reports_when_each_target_was_first_reached():
-    from agrl.bench_race import RaceEvaluation, TrainingClock
     from agrl.envs.gym import guidance_parameters
+    from benchmarks.bench_race import RaceEvaluation, TrainingClock
 
     evaluation = RaceEvaluation(guidance_parameters(), episodes=2, seed=0, clock=TrainingClock(),
                                 targets=(0.95, 0.99), emit=lambda record: None)
@@ -167,7 +175,7 @@ def test_race_result_reports_when_each_target_was_first_reached():
 
 
 def test_race_arguments():
-    from agrl.bench_race import parse_args
+    from benchmarks.bench_race import parse_args
 
     default = parse_args([])
     assert default.sb3_geometry == "sb3" and default.sb3_env == "single" and default.targets == [0.95, 0.99]

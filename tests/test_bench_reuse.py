@@ -1,4 +1,4 @@
-"""Smoke test of ``python -m agrl.bench_reuse --quick``: output format and counts, no timing assertions."""
+"""Smoke test of ``python -m benchmarks.bench_reuse --quick``: output format and counts, no timing assertions."""
 
 from __future__ import annotations
 
@@ -6,15 +6,20 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
-from agrl.bench_reuse import parse_args
+from benchmarks.bench_reuse import parse_args
+
+#: The benchmarks run in a temporary folder and import from the repository root.
+REPO = Path(__file__).resolve().parents[1]
 
 
 def test_quick_run_times_each_candidate_count(tmp_path):
-    command = [sys.executable, "-m", "agrl.bench_reuse", "--quick", "--candidates", "2", "4"]
-    environment = {**os.environ, "OMP_NUM_THREADS": "1"}  # small tensors: one thread (see conftest)
+    command = [sys.executable, "-m", "benchmarks.bench_reuse", "--quick", "--candidates", "2", "4"]
+    # Small tensors: one thread (see conftest).
+    environment = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
     completed = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path, env=environment)
     assert completed.returncode == 0, completed.stderr
     records = [json.loads(line) for line in completed.stdout.splitlines() if line.strip()]
@@ -36,8 +41,8 @@ def test_quick_run_times_each_candidate_count(tmp_path):
 
 
 def test_after_training_iterations_the_batch_continues_episodes_of_the_one_before(tmp_path):
-    command = [sys.executable, "-m", "agrl.bench_reuse", "--quick", "--candidates", "2", "--iterations", "1"]
-    environment = {**os.environ, "OMP_NUM_THREADS": "1"}
+    command = [sys.executable, "-m", "benchmarks.bench_reuse", "--quick", "--candidates", "2", "--iterations", "1"]
+    environment = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
     completed = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path, env=environment)
     assert completed.returncode == 0, completed.stderr
     # The trainer's replay buffer logs a line when it first fills (torchrl's logger writes to stdout).

@@ -1,6 +1,6 @@
 """The pure-Python reference (agrl/reference.py) computes what the torch simulator computes.
 
-A correctness test, not a timing test: it makes ``python -m agrl.bench`` compare like with like.
+A correctness test, not a timing test: it makes ``python -m benchmarks.bench`` compare like with like.
 In float64 the two agree to rounding; in float32 (what training runs) to float32 accuracy.
 """
 

@@ -1,4 +1,4 @@
-"""``python -m agrl.bench_reuse``: the cost of one policy-reuse relabelling (Algorithm 1), one JSON object per line.
+"""``python -m benchmarks.bench_reuse``: the cost of one policy-reuse relabelling (Algorithm 1), one JSON line each.
 
 Builds the reuse trainer of a task (the project's defaults, the shipped baseline as B), collects one
 batch with the agent Z (untrained, or the actor of ``--checkpoint``), then times
@@ -17,14 +17,14 @@ and ``unit``, plus the median process CPU seconds (``cpu_seconds``: comparable o
 its cost, independent of the load), the time loop's steps (``time_loop_steps``, one simulator call each) and the
 process CPU seconds spent in the simulator, the row-decisions by the size of the call's batch, the episodes selected,
 searched, carried over from an earlier batch and relabelled, and the rows stored. The first line is the machine (see
-:mod:`agrl.bench`).
+:mod:`benchmarks.bench`).
 
 Examples::
 
-    python -m agrl.bench_reuse                                   # uniform 50 m/s, first batch, 8/16/32 candidates
-    python -m agrl.bench_reuse --checkpoint runs/.../checkpoints/latest.pt --selection-factor 0.8
-    python -m agrl.bench_reuse --threads 1 --candidates 16 --iterations 5 task=uniform speed=100  # a 6th iteration
-    python -m agrl.bench_reuse --quick                           # smoke test (seconds)
+    python -m benchmarks.bench_reuse                       # uniform 50 m/s, first batch, 8/16/32 candidates
+    python -m benchmarks.bench_reuse --checkpoint runs/.../checkpoints/latest.pt --selection-factor 0.8
+    python -m benchmarks.bench_reuse --threads 1 --candidates 16 --iterations 5 task=uniform speed=100  # a 6th
+    python -m benchmarks.bench_reuse --quick               # smoke test (seconds)
 """
 
 from __future__ import annotations
@@ -39,8 +39,8 @@ from collections.abc import Sequence
 
 import torch
 
-from agrl.bench import emit, machine_record
 from agrl.cli import positive_int
+from benchmarks.bench import emit, machine_record
 
 #: Upper bounds of the call sizes the row-decisions are counted by (rows per simulator call).
 CALL_SIZES = (32, 256, 1024)
@@ -81,7 +81,7 @@ def _non_negative(text: str) -> int:
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="python -m agrl.bench_reuse",
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_reuse",
                                      description="Seconds per policy-reuse relabelling of one collector batch.")
     parser.add_argument("overrides", nargs="*", default=None, metavar="KEY=VALUE",
                         help="Hydra overrides of the training config (default: task=uniform speed=50)")

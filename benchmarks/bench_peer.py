@@ -1,4 +1,4 @@
-"""``python -m agrl.bench_peer``: stable-baselines3 PPO on the gymnasium vector env against agrl's trainer.
+"""``python -m benchmarks.bench_peer``: stable-baselines3 PPO on the gymnasium vector env against agrl's trainer.
 
 Both train on the same batched simulator with the same batch geometry (``--num-envs`` 512 envs x
 ``--steps`` 64 decisions per iteration, ``--minibatch`` 512) and the training defaults of ``conf/`` (SB3 takes
@@ -18,7 +18,7 @@ plain PyTorch with no TensorDict, no loss module, no collector and no environmen
 any trainer can reach on equal work on this machine, so a ``ratio_floor_over_sb3`` line says how far ahead of
 stable-baselines3 equal work can be at all.
 
-stable-baselines3 is the ``bench`` extra (``pip install 'agrl[bench]'``; it leaves torch alone). It
+stable-baselines3 is the ``bench`` extra (``pip install -e '.[bench]'``; it leaves torch alone). It
 sees the env through :class:`Sb3VectorEnv`, a thin adapter from
 :class:`agrl.envs.gym_vector.GuidanceVectorEnv` (same-step autoreset) to its ``VecEnv`` interface.
 agrl's side is :class:`agrl.rl.trainer.Trainer`, the one ``python -m agrl.train`` runs, built from
@@ -27,7 +27,7 @@ agrl's side is :class:`agrl.rl.trainer.Trainer`, the one ``python -m agrl.train`
 
 Example::
 
-    python -m agrl.bench_peer --iterations 4 --threads 1
+    python -m benchmarks.bench_peer --iterations 4 --threads 1
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ def _sb3():
     try:
         import stable_baselines3
     except ImportError:
-        raise SystemExit("agrl.bench_peer: error: needs stable-baselines3 (pip install 'agrl[bench]')") from None
+        raise SystemExit("benchmarks.bench_peer: error: needs stable-baselines3 (pip install -e '.[bench]')") from None
     return stable_baselines3
 
 
@@ -296,7 +296,7 @@ def _ratio(name: str, numerator: dict, sb3: dict, args, threads: int, load: floa
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m agrl.bench_peer", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_peer", description=__doc__.splitlines()[0])
     parser.add_argument("--num-envs", type=int, default=512)
     parser.add_argument("--steps", type=int, default=64, help="decisions per env per iteration")
     parser.add_argument("--minibatch", type=int, default=512, help="minibatch size (default 512, Table 2)")

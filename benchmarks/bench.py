@@ -1,4 +1,4 @@
-"""``python -m agrl.bench``: simulator throughput, one JSON object per line.
+"""``python -m benchmarks.bench``: simulator throughput, one JSON object per line.
 
 Measures environment decisions per second (one decision = the paper's 3 s at a 20 ms
 integration step = 150 integration steps):
@@ -30,9 +30,9 @@ fixed ``ppo.num_envs`` does). Threads: torch's default (``torch.get_num_threads(
 
 Examples::
 
-    python -m agrl.bench                      # full run (a few minutes, mostly compilation)
-    python -m agrl.bench --quick              # smoke test: small batches, eager only
-    python -m agrl.bench --batch-sizes 512 8192 --repeats 7 --modes compiled
+    python -m benchmarks.bench                # full run (a few minutes, mostly compilation)
+    python -m benchmarks.bench --quick        # smoke test: small batches, eager only
+    python -m benchmarks.bench --batch-sizes 512 8192 --repeats 7 --modes compiled
 """
 
 from __future__ import annotations
@@ -338,7 +338,7 @@ def machine_record(device: torch.device) -> dict:
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
-        prog="python -m agrl.bench",
+        prog="python -m benchmarks.bench",
         description="Guidance decisions per second (150 integration steps each); one JSON line each.",
     )
     parser.add_argument("--batch-sizes", type=positive_int, nargs="+", default=None, metavar="N",

@@ -1,4 +1,4 @@
-"""``python -m agrl.bench_race``: stable-baselines3 PPO and agrl's trainer learn the same task in the same wall time.
+"""``python -m benchmarks.bench_race``: stable-baselines3 PPO and agrl's trainer learn one task in the same wall time.
 
 Each trainer trains for ``--budget-seconds`` of its own training clock, one after the other in this process
 (``torch._dynamo.reset()`` in between, so each pays its own ``torch.compile``). The clock starts before the
@@ -19,11 +19,11 @@ minibatch 64, 10 epochs, learning rate 3e-4, gamma 0.99, GAE lambda 0.95, clip 0
 coefficient 0.5, gradient norm 0.5, 64-64 tanh networks): what a user writes. The envs are
 ``make_vec_env("agrl/Guidance-v0", n_envs)`` (``--sb3-env single``: one Python-float env per row, the faster form
 for a few rows) or the batched gym vector env (``--sb3-env vector``: :mod:`agrl.envs.gym_vector`, same-step
-autoreset, through :func:`agrl.bench_peer.make_sb3_vector_env`; the default with ``--sb3-geometry agrl``).
+autoreset, through :func:`benchmarks.bench_peer.make_sb3_vector_env`; the default with ``--sb3-geometry agrl``).
 ``--sb3-geometry agrl`` takes
 agrl's composed config instead (``ppo.num_envs`` rows, ``ppo.steps_per_env``, minibatch, epochs, learning
 rate, reward gamma, GAE lambda, clip, entropy and value coefficients, gradient norm, network sizes and
-activation), the geometry of ``python -m agrl.bench_peer``, with no curriculum.
+activation), the geometry of ``python -m benchmarks.bench_peer``, with no curriculum.
 
 Prints JSON lines: ``race_evaluation`` (one per evaluation), ``race_result`` per trainer (training seconds and
 decisions to first reach each target, decisions/s, final and best success) and ``race_summary``
@@ -31,7 +31,7 @@ decisions to first reach each target, decisions/s, final and best success) and `
 
 Example (the run in docs/benchmarks.md, "Not in `make bench`"; about 25 minutes on a quiet 2-core machine)::
 
-    python -m agrl.bench_race --budget-seconds 1250 --eval-every 20 --threads 1
+    python -m benchmarks.bench_race --budget-seconds 1250 --eval-every 20 --threads 1
 """
 
 from __future__ import annotations
@@ -217,7 +217,7 @@ def race_sb3(args, evaluation: RaceEvaluation, clock: TrainingClock) -> dict:
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
 
-    from agrl.bench_peer import make_sb3_vector_env
+    from benchmarks.bench_peer import make_sb3_vector_env
 
     settings = sb3_settings(args)
     num_envs = agrl_config(args).ppo.num_envs if args.sb3_geometry == "agrl" else args.sb3_num_envs
@@ -266,7 +266,7 @@ def race_sb3(args, evaluation: RaceEvaluation, clock: TrainingClock) -> dict:
 
 
 def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="python -m agrl.bench_race", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench_race", description=__doc__.splitlines()[0])
     parser.add_argument("--budget-seconds", type=float, default=900.0, help="training seconds per trainer")
     parser.add_argument("--eval-every", type=float, default=30.0, help="training seconds between evaluations")
     parser.add_argument("--eval-episodes", type=int, default=256,
@@ -310,7 +310,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     if "stable-baselines3" in args.trainers:
-        from agrl.bench_peer import _sb3
+        from benchmarks.bench_peer import _sb3
 
         _sb3()
     import torch
@@ -330,12 +330,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         config = agrl_config(args)
     except (ConfigError, HydraException) as error:  # a bad --agrl-override: one line, not Hydra's traceback
-        raise SystemExit(f"agrl.bench_race: error: {str(error).splitlines()[0]}") from None
+        raise SystemExit(f"benchmarks.bench_race: error: {str(error).splitlines()[0]}") from None
     # One task for both: the gym env's parameters must be those agrl trains on (overrides may not change them).
     params = guidance_parameters(task=args.task, max_decisions=args.max_decisions, compile=args.compile)
     trained = to_guidance_parameters(config.task, config.reward, config.simulation)
     if dataclasses.replace(trained, compile=params.compile) != params:
-        raise SystemExit("agrl.bench_race: error: --agrl-override changed the task (task, reward or simulation): "
+        raise SystemExit("benchmarks.bench_race: error: --agrl-override changed the task (task, reward or simulation): "
                          "both trainers must learn the same one")
     clock = TrainingClock()
     load = os.getloadavg()[0]
