@@ -16,7 +16,7 @@ trained with:
 - from a checkpoint, ``instruct_batch`` runs that function and the actor's layers in torch as
   :class:`BatchedLayers` (in-place activations into reused buffers; tested equal to the actor);
   ``instruct`` (one query, where torch's per-operation cost would dominate) runs the one-row form
-  :func:`agrl.envs.rows.observation_row` (tested equal to it) and three numpy matrix-vector products;
+  :func:`agrl.rows.observation_row` (tested equal to it) and three numpy matrix-vector products;
 - an ONNX (``onnxruntime``) or ``torch.export`` file holds :class:`GuidePolicy`: the same observation
   function, network and argmax as one graph with raw-state inputs ``aircraft_state`` ``(N, 7)``
   float32, ``destination_state`` ``(N, 4)`` float32, ``last_action`` ``(N,)`` int64 and output
@@ -43,7 +43,7 @@ from agrl.config import one_line
 from agrl.core.aircraft import MANEUVER_NAMES, AircraftLimits
 from agrl.core.observation import policy_observation
 from agrl.core.termination import Airspace
-from agrl.envs.rows import observation_row
+from agrl.rows import observation_row
 
 NUM_MANEUVERS = len(MANEUVER_NAMES)
 FLOAT32_MAX = float(np.finfo(np.float32).max)

@@ -1,4 +1,4 @@
-"""A pure-Python, single-environment reference of one decision step (``math`` and floats, no torch).
+"""A pure-Python, one-row form of one decision step (``math`` and floats, no torch): a deliberate second copy.
 
 It implements the same equations, in the same order, as :mod:`agrl.core`
 (:class:`agrl.core.simulation.DecisionSimulator`):
@@ -11,9 +11,19 @@ It implements the same equations, in the same order, as :mod:`agrl.core`
 - success (equation 2) and leaving the airspace (equation 1) after every
   integration step; the decision stops at the first terminal integration step.
 
-Two uses: ``tests/test_reference.py`` checks that the batched torch simulator
-computes the same numbers, and ``python -m agrl.bench`` times it as the scalar
-baseline the batched simulator is compared with.
+It is both the test oracle of :mod:`agrl.core` and the engine of the single gymnasium env:
+
+- ``tests/test_reference.py`` checks that the batched torch simulator computes the same numbers
+  (equal to rounding in float64);
+- :class:`agrl.envs.gym.GuidanceGymEnv` flies every decision with :func:`reference_decision`, because
+  the batched simulator at batch 1 is dominated by torch's per-operation cost: one decision took 0.13 ms
+  here against 46 ms for the eager :class:`agrl.core.simulation.DecisionSimulator` at batch 1 (about 350x;
+  measured once on 2026-12-04 on the shared 2-core development machine under load, the command and the
+  observation's and reward's figures in :mod:`agrl.rows`' docstring);
+- ``python -m benchmarks.bench`` times it as the scalar baseline the batched simulator is compared with.
+
+With :mod:`agrl.rows` (the one-row observation and reward, beside it) it is the only second copy of the
+model; they import only :mod:`agrl.core` (and :mod:`agrl.rows` this module), never the environments.
 """
 
 from __future__ import annotations
@@ -72,7 +82,7 @@ def reference_decision(
     ``params`` and ``maneuvers`` are a :class:`agrl.core.parameters.GuidanceParameters`' ``simulation`` and
     ``maneuvers`` (built from ``conf/``, e.g. by :func:`agrl.config.guidance_parameters`).
 
-    The loop is the scalar baseline of ``python -m agrl.bench``, so it does only the work whose result can
+    The loop is the scalar baseline of ``python -m benchmarks.bench``, so it does only the work whose result can
     change: a sine or cosine is recomputed only when its angle changed (the bank law's terms vanish exactly
     for unbanked maneuvers, the destination's heading changes only when it turns or is reflected), and a
     destination at rest inside the walls is not moved. Each remaining expression is the one of the plain

@@ -4,7 +4,8 @@
   per iteration, a coarse 0.1 s integration step and at most 30 decisions per episode, so that an iteration
   and an evaluation take well under a second with the eager simulator).
 * ``compose_train`` composes ``conf/`` in-process and validates it (``agrl.config.load_config``).
-* ``run_cli`` runs ``python -m agrl.<module>`` in a subprocess (one torch thread, see below).
+* ``run_cli`` runs ``python -m agrl.<module>`` in a subprocess (one torch thread, see below); ``run_cli.checks``
+  runs only its checks before Hydra, in process (a refused command line costs no interpreter start-up).
 * ``tiny_run`` is one real ``python -m agrl.train`` run of 4 iterations, shared by the whole session.
 * ``paper_parameters`` is the :class:`GuidanceParameters` of ``task=fixed reward=both`` composed from ``conf/`` (the
   one source of every value; the records have no defaults): the paper's Table 1/2 values and this project's
@@ -163,6 +164,35 @@ def _run_cli_batch(jobs: dict[str, tuple[str, ...]], cwd: Path, timeout: float =
     return results
 
 
+#: {module: its root config}, as each ``__main__`` passes them to :func:`agrl.cli.run_checked`.
+CHECKED_ENTRY_POINTS = {"train": "config", "evaluate": "evaluate"}
+
+
+def _run_checks(module: str, *args: str, cwd: Path) -> subprocess.CompletedProcess:
+    """What ``python -m agrl.<module> *args`` does before Hydra runs (:func:`agrl.cli.run_checked` with the module's
+    config and ``check_inputs``), in this process and in ``cwd``: returncode 2 and the stderr line of a refused
+    command line, or 0 and no output if the run would start (it is not started)."""
+    import contextlib
+    import importlib
+    import io
+
+    from agrl.cli import run_checked
+
+    entry_point = importlib.import_module(f"agrl.{module}")
+    stdout, stderr, argv = io.StringIO(), io.StringIO(), sys.argv
+    sys.argv = [f"agrl.{module}", *args]
+    code = 0
+    try:
+        with contextlib.chdir(cwd), contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+            run_checked(lambda: None, f"agrl.{module}", CHECKED_ENTRY_POINTS[module], entry_point.check_inputs)
+    except SystemExit as exit_:
+        code = exit_.code
+    finally:
+        sys.argv = argv
+    return subprocess.CompletedProcess(["run_checked", f"agrl.{module}", *args], code, stdout.getvalue(),
+                                       stderr.getvalue())
+
+
 @pytest.fixture(scope="session")
 def cli_workdir(tmp_path_factory) -> Path:
     """Working directory of CLI subprocesses (so nothing lands in the repository's ``runs/``)."""
@@ -173,7 +203,8 @@ def cli_workdir(tmp_path_factory) -> Path:
 def run_cli(cli_workdir):
     """``run_cli("train", *overrides)`` -> CompletedProcess of ``python -m agrl.train ...``;
     ``run_cli.batch({"name": ("train", *overrides), ...})`` runs several at once (``cwd=``: in another folder)
-    and returns {name: CompletedProcess}."""
+    and returns {name: CompletedProcess}; ``run_cli.checks("train", *overrides)`` runs only the checks made before
+    Hydra runs, in this process (no interpreter start-up: for the many refused command lines)."""
 
     def run(module: str, *args: str, timeout: float = 300) -> subprocess.CompletedProcess:
         return _run_cli(module, *args, cwd=cli_workdir, timeout=timeout)
@@ -181,7 +212,11 @@ def run_cli(cli_workdir):
     def batch(jobs: dict[str, tuple[str, ...]], timeout: float = 300, cwd: Path | None = None) -> dict:
         return _run_cli_batch(jobs, cwd=cwd or cli_workdir, timeout=timeout)
 
+    def checks(module: str, *args: str) -> subprocess.CompletedProcess:
+        return _run_checks(module, *args, cwd=cli_workdir)
+
     run.batch = batch
+    run.checks = checks
     run.command = _cli_command
     run.environment = _cli_environment
     run.cwd = cli_workdir

@@ -2,6 +2,7 @@
 
 Every module of agrl is read with ``ast`` (imports inside functions count too) and must
 import only modules of its own layer or a lower one. A new module must be given a layer here.
+The benchmarks (``benchmarks/``, beside the package and not in the wheel) import agrl; agrl never imports them.
 """
 
 from __future__ import annotations
@@ -20,14 +21,14 @@ LAYERS = {
     "agrl": 0,  # the package itself: version and the gymnasium registration (by name, no import)
     "agrl.baselines": 0,  # the shipped baseline's location
     "agrl.core": 0,  # pure batched torch: no Hydra, no TorchRL
-    "agrl.reference": 1,  # the pure-Python reference simulator (benchmarks, tests)
+    "agrl.reference": 1,  # the pure-Python one-row simulator (single gym env, test oracle, benchmark baseline)
+    "agrl.rows": 1,  # the pure-Python one-row observation and reward (single gym env, single-query guide)
     "agrl.plots": 1,  # figures from plain records
     "agrl.config": 1,  # Hydra structured schemas and the mapping onto core records
     "agrl.envs": 2,  # TorchRL and gymnasium environments
     "agrl.rl": 3,  # actor-critic, PPO trainer, checkpoints, evaluation, policy reuse
     "agrl.train": 4, "agrl.evaluate": 4, "agrl.export": 4, "agrl.report": 4,  # entry points
-    "agrl.bench": 4, "agrl.bench_reuse": 4, "agrl.bench_peer": 4, "agrl.bench_race": 4, "agrl.guide": 4,
-    "agrl.distill": 4, "agrl.cli": 4,  # the entry points' command-line check
+    "agrl.guide": 4, "agrl.distill": 4, "agrl.cli": 4,  # the entry points' command-line check
 }
 
 
@@ -54,6 +55,16 @@ def imported_agrl_modules(path: Path) -> set[str]:
     return found
 
 
+def imports_benchmarks(path: Path) -> bool:
+    """Whether ``path`` imports anything from the top-level ``benchmarks`` package."""
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import) and any(alias.name.split(".")[0] == "benchmarks" for alias in node.names):
+            return True
+        if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").split(".")[0] == "benchmarks":
+            return True
+    return False
+
+
 def import_graph() -> dict[str, set[str]]:
     return {module_name(path): imported_agrl_modules(path) for path in sorted(PACKAGE.rglob("*.py"))}
 
@@ -66,6 +77,14 @@ def test_every_module_imports_only_its_own_or_lower_layers():
         if layer_of(target) > layer_of(module)
     ]
     assert reverse == []
+
+
+def test_the_package_never_imports_the_benchmarks(tmp_path):
+    # The wheel ships agrl without benchmarks/: an import of them would fail in every installed copy.
+    offender = tmp_path / "uses_bench.py"
+    offender.write_text("def f():\n    from benchmarks.bench import emit\n    return emit\n")
+    assert imports_benchmarks(offender)
+    assert [module_name(path) for path in sorted(PACKAGE.rglob("*.py")) if imports_benchmarks(path)] == []
 
 
 def test_no_import_cycles():

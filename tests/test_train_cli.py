@@ -262,10 +262,16 @@ ONE_LINE_ERRORS = {
 }
 
 
+#: Refused command lines that also run as real processes, at once: a mistyped key, a sweep, and a file the checks
+#: load. The others run the same checks in process (``run_cli.checks``, agrl.cli.run_checked as the module's
+#: ``__main__`` calls it): a real process adds only its start-up, the same for every case.
+REAL_PROCESS_CASES = ("sped", "sweep-value", "baseline-random-bytes")
+
+
 @pytest.fixture(scope="module")
 def bad_invocations(run_cli, tmp_path_factory):
-    """Every failing invocation of this module, run at once: {case: CompletedProcess}, and ``directory``: each
-    case's run (and sweep) directory is ``directory / case``, which must not be created."""
+    """Every failing invocation of this module: {case: CompletedProcess}, and ``directory``: each case's run (and
+    sweep) directory is ``directory / case``, which must not be created."""
     directory = tmp_path_factory.mktemp("bad_train")
     bad = directory / "random.pt"
     bad.write_bytes(random.Random(7).randbytes(4096))
@@ -274,7 +280,13 @@ def bad_invocations(run_cli, tmp_path_factory):
     jobs["resume-random-bytes"] = ("train", f"resume={bad}", f"hydra.run.dir={directory / 'run'}")
     jobs["baseline-random-bytes"] = ("train", "method=pretrained", f"method.baseline={bad}",
                                      f"hydra.run.dir={directory / 'baseline-random-bytes'}")
-    return {"bad_file": bad, "directory": directory, **run_cli.batch(jobs)}
+    in_process = {case: run_cli.checks(*job) for case, job in jobs.items() if case not in REAL_PROCESS_CASES}
+    processes = run_cli.batch({case: jobs[case] for case in REAL_PROCESS_CASES})
+    return {"bad_file": bad, "directory": directory, **in_process, **processes}
+
+
+def test_some_refused_command_lines_ran_as_real_processes(bad_invocations):
+    assert all(bad_invocations[case].args[:2] == run_cli_command_start() for case in REAL_PROCESS_CASES)
 
 
 @pytest.mark.parametrize("case", sorted(ONE_LINE_ERRORS))

@@ -16,6 +16,12 @@ Phi(terminal) = 0, so the optimal policy is unchanged (equations 15-18).
 Beyond the paper: :func:`switch_cost_reward` is a plain (non-potential) cost per
 change of maneuver. It does change the optimal policy, which is its purpose; it is
 off (``switch_cost = 0``) in the paper's four variants.
+
+One function assembles the step reward: :func:`step_reward` (equation 5 plus the switch cost), from the
+terms below, each its own function. The batched env (:class:`agrl.envs.guidance.GuidanceEnv`) and the
+tests call it; the only second copy is the one-row Python-float form in :mod:`agrl.rows`
+(:func:`agrl.rows.potential_row`, :func:`agrl.rows.step_reward_row`), which runs the single gymnasium env
+and is tested equal to :func:`step_reward` (``tests/envs/test_rows.py``); its docstring says why it exists.
 """
 
 from __future__ import annotations
@@ -83,6 +89,25 @@ def position_potential(
     )
 
 
+def potential_terms(
+    aircraft_state: torch.Tensor,
+    destination_state: torch.Tensor,
+    last_action: torch.Tensor,
+    action_before_last: torch.Tensor,
+    terminal: torch.Tensor,
+    params: RewardParameters,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Equation 8's two terms (C, P), each 0 when switched off and in terminal states (Phi(terminal) = 0)."""
+    zeros = torch.zeros(aircraft_state.shape[:-1], dtype=torch.float32, device=aircraft_state.device)
+    action_term = position_term = zeros
+    if params.use_continuous_action:
+        action_term = zeros + continuous_action_potential(last_action, action_before_last, params)
+    if params.use_position:
+        position_term = zeros + position_potential(aircraft_state, destination_state, params)
+    return (torch.where(terminal, torch.zeros_like(action_term), action_term),
+            torch.where(terminal, torch.zeros_like(position_term), position_term))
+
+
 def potential(
     aircraft_state: torch.Tensor,
     destination_state: torch.Tensor,
@@ -91,13 +116,11 @@ def potential(
     terminal: torch.Tensor,
     params: RewardParameters,
 ) -> torch.Tensor:
-    """Equation 8: Phi = C + P, each term switchable; 0 in terminal states."""
-    value = torch.zeros(aircraft_state.shape[:-1], dtype=torch.float32, device=aircraft_state.device)
-    if params.use_continuous_action:
-        value = value + continuous_action_potential(last_action, action_before_last, params)
-    if params.use_position:
-        value = value + position_potential(aircraft_state, destination_state, params)
-    return torch.where(terminal, torch.zeros_like(value), value)
+    """Equation 8: Phi = C + P, each term switchable; 0 in terminal states (the sum of :func:`potential_terms`)."""
+    action_term, position_term = potential_terms(
+        aircraft_state, destination_state, last_action, action_before_last, terminal, params
+    )
+    return action_term + position_term
 
 
 def shaping_reward(
@@ -128,11 +151,46 @@ def switch_cost_reward(
     return torch.where(changed, -params.switch_cost, 0.0).to(torch.float32)
 
 
+#: Names of :func:`step_reward`'s parts, in the order they are summed; the env returns each at every step and
+#: training logs their means as ``train/<name>`` (:func:`agrl.rl.metrics.episode_statistics`).
+REWARD_PART_KEYS = ("reward_termination", "reward_action_shaping", "reward_position_shaping", "reward_switch_cost")
+
+
 def step_reward(
     outcome: torch.Tensor,
-    potential_before: torch.Tensor,
-    potential_after: torch.Tensor,
+    aircraft_state: torch.Tensor,
+    destination_state: torch.Tensor,
+    last_action: torch.Tensor,
+    action_before_last: torch.Tensor,
+    action: torch.Tensor,
+    next_aircraft_state: torch.Tensor,
+    next_destination_state: torch.Tensor,
     params: RewardParameters,
-) -> torch.Tensor:
-    """Equation 5: R = T + F."""
-    return termination_reward(outcome, params) + shaping_reward(potential_before, potential_after, params)
+) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    """Equation 5, R = T + F, plus the switch cost: the reward of the decision ``action`` taken in S_t.
+
+    S_t is (``aircraft_state``, ``destination_state``, ``last_action``, ``action_before_last``); S_{t+1} is
+    (``next_aircraft_state``, ``next_destination_state``, ``action``, ``last_action``) (equation 4's state
+    carries the last two actions, see the module doc), terminal unless ``outcome`` (of S_{t+1}) is
+    ``Outcome.RUNNING``. Any batch shape; every argument has it (states with one more, last dimension).
+
+    Returns the total and its parts (:data:`REWARD_PART_KEYS`), which sum to it in that order: the termination
+    reward T (:func:`termination_reward`), F split by potential term, gamma C' - C and gamma P' - P (each
+    :func:`shaping_reward` of its own :func:`potential_terms` term; exact since equation 7 is linear in
+    Phi = C + P), and :func:`switch_cost_reward`.
+    """
+    terminal = outcome != Outcome.RUNNING
+    action_before, position_before = potential_terms(
+        aircraft_state, destination_state, last_action, action_before_last, torch.zeros_like(terminal), params
+    )
+    action_after, position_after = potential_terms(
+        next_aircraft_state, next_destination_state, action, last_action, terminal, params
+    )
+    termination, action_shaping, position_shaping, switch_cost = parts = (
+        termination_reward(outcome, params),
+        shaping_reward(action_before, action_after, params),
+        shaping_reward(position_before, position_after, params),
+        switch_cost_reward(action, last_action, params),
+    )
+    total = termination + action_shaping + position_shaping + switch_cost
+    return total, dict(zip(REWARD_PART_KEYS, parts, strict=True))

@@ -20,7 +20,7 @@ from agrl.core.destinations import redraw_irregular_motion
 from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.observation import observation_function, observation_size
 from agrl.core.parameters import GuidanceParameters, MotionKind
-from agrl.core.reward import potential, shaping_reward, switch_cost_reward, termination_reward
+from agrl.core.reward import REWARD_PART_KEYS, step_reward
 from agrl.core.simulation import DecisionResult, DecisionSimulator
 from agrl.core.termination import Outcome
 
@@ -40,15 +40,14 @@ STATE_KEYS = (
 )
 #: Entries a scenario (explicit initial conditions) provides; see :meth:`GuidanceEnv.scenario`.
 SCENARIO_KEYS = ("aircraft_state", "destination_state", "destination_speed", "destination_turn_rate")
-#: The reward's parts of the last step (they sum to ``reward``); statistics only, not state.
-REWARD_PART_KEYS = ("reward_termination", "reward_action_shaping", "reward_position_shaping", "reward_switch_cost")
 
 
 class GuidanceEnv(EnvBase):
     """Aircraft guidance to a fixed or moving destination (the paper's MDP), batched.
 
     Each step is one 3 s decision made of 150 integration steps of 20 ms. Actions
-    are the seven maneuvers (``Categorical(7)``). The reward is equation 5.
+    are the seven maneuvers (``Categorical(7)``). The reward is equation 5 plus the optional switch cost
+    (:func:`agrl.core.reward.step_reward`, with its parts as entries, :data:`REWARD_PART_KEYS`).
 
     Scenario replay: ``env.reset(env.scenario(aircraft_state=..., destination_state=...,
     destination_speed=..., destination_turn_rate=...))`` starts the (masked) rows from
@@ -143,31 +142,6 @@ class GuidanceEnv(EnvBase):
             state["aircraft_state"], state["destination_state"], state["last_action"],
             simulation.airspace, simulation.limits,
         )
-
-    def reward_parts(
-        self, state: TensorDictBase, next_state: TensorDictBase, terminal: torch.Tensor, switch_cost: torch.Tensor
-    ) -> dict[str, torch.Tensor]:
-        """The step's reward split into its parts (:data:`REWARD_PART_KEYS`); they sum to the reward.
-
-        Each shaping term is its own equation-7 difference of its own potential
-        (equation 9's C or equations 10-11's P), which is exact since equation 7 is
-        linear in Phi = C + P.
-        """
-        params = self.params.reward
-        parts = {"reward_termination": termination_reward(next_state["outcome"], params)}
-        for key, only_action in (("reward_action_shaping", True), ("reward_position_shaping", False)):
-            term = dataclasses.replace(
-                params,
-                use_continuous_action=params.use_continuous_action and only_action,
-                use_position=params.use_position and not only_action,
-            )
-            before = potential(state["aircraft_state"], state["destination_state"], state["last_action"],
-                               state["action_before_last"], torch.zeros_like(terminal), term)
-            after = potential(next_state["aircraft_state"], next_state["destination_state"],
-                              next_state["last_action"], next_state["action_before_last"], terminal, term)
-            parts[key] = shaping_reward(before, after, term)
-        parts["reward_switch_cost"] = switch_cost
-        return parts
 
     def scenario(
         self,
@@ -336,12 +310,12 @@ class GuidanceEnv(EnvBase):
             batch_size=state.batch_size,
             device=self.device,
         )
-        # Equation 5, R = T + F, with F split by potential term (equation 7 is linear in Phi = C + P), plus the
-        # optional switch cost: the parts are logged, and their sum is the reward.
-        switch_cost = switch_cost_reward(action, state["last_action"], self.params.reward)
-        parts = self.reward_parts(state, next_state, terminal, switch_cost)
+        # Equation 5 plus the switch cost, and its parts (logged; they sum to the reward).
+        reward, parts = step_reward(
+            outcome, state["aircraft_state"], state["destination_state"], state["last_action"],
+            state["action_before_last"], action, result.aircraft_state, result.destination_state, self.params.reward,
+        )
         next_state.update(parts)
-        reward = sum(parts.values())
         next_state["reward"] = reward.unsqueeze(-1)
         next_state["episode_return"] = state["episode_return"] + reward
         # An instruction is a decision that changes the maneuver being flown.

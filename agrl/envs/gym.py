@@ -8,9 +8,9 @@ gymnasium environments can use the paper's MDP::
     obs, info = env.reset(seed=0)
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
 
-One row runs in Python floats (:mod:`agrl.envs.rows`): the decision is
+One row runs in Python floats (:mod:`agrl.rows`): the decision is
 :func:`agrl.reference.reference_decision` (the pure-Python form of the batched simulator,
-tested equal to it), the observation and reward are :mod:`agrl.envs.rows`' one-row forms of
+tested equal to it), the observation and reward are :mod:`agrl.rows`' one-row forms of
 :mod:`agrl.core`'s (tested equal to them). Resets, seeding and the irregular destination's
 random redraws are those of a one-row :class:`agrl.envs.GuidanceEnv` (same functions, same
 generator), so from the same seed or scenario and the same actions the two environments fly
@@ -48,8 +48,8 @@ from agrl.core.observation import OBSERVATION_FEATURES, OBSERVATION_SIZE
 from agrl.core.parameters import GuidanceParameters, MotionKind
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import NUM_ACTIONS, SCENARIO_KEYS, GuidanceEnv
-from agrl.envs.rows import initial_aircraft_row, observation_row, potential_row, step_reward_row
 from agrl.reference import reference_decision
+from agrl.rows import initial_aircraft_row, observation_row, potential_row, step_reward_row
 
 ENV_ID = "agrl/Guidance-v0"
 _OUTCOME_NAMES = tuple(outcome.name.lower() for outcome in Outcome)  # indexed by the Outcome code

@@ -15,8 +15,8 @@ import numpy as np
 from tensordict import TensorDictBase
 from torchrl.record.loggers import TensorboardLogger
 
+from agrl.core.reward import REWARD_PART_KEYS
 from agrl.core.termination import Outcome
-from agrl.envs.guidance import REWARD_PART_KEYS
 
 
 def flatten_config(config: dict[str, Any], prefix: str = "") -> dict[str, Any]:

@@ -10,6 +10,7 @@ import torch
 
 from agrl.core.parameters import DestinationMotion
 from agrl.core.reward import (
+    REWARD_PART_KEYS,
     RewardParameters,
     continuous_action_potential,
     position_potential,
@@ -138,14 +139,47 @@ def test_potential_switches_and_terminal(paper_reward):
     assert all(v != 0.0 for v in got[~terminal].tolist())
 
 
-def test_shaping_and_step_reward():
+def test_shaping_reward():
     before = torch.tensor([1.0, -2.0, 0.5])
     after = torch.tensor([0.5, -1.0, 0.0])
     shaping = shaping_reward(before, after, CUSTOM)
     assert shaping.tolist() == pytest.approx([0.9 * 0.5 - 1.0, 0.9 * -1.0 + 2.0, -0.5])
-    outcome = torch.tensor([Outcome.RUNNING, Outcome.RUNNING, Outcome.SUCCESS])
-    total = step_reward(outcome, before, after, CUSTOM)
-    assert total.tolist() == pytest.approx([0.9 * 0.5 - 1.0, 0.9 * -1.0 + 2.0, 7.0 - 0.5])
+
+
+@pytest.mark.parametrize(("use_c", "use_p", "switch_cost"),
+                         [(True, True, 0.0), (True, False, 0.25), (False, True, 0.25), (False, False, 0.0)])
+def test_step_reward_by_hand(use_c, use_p, switch_cost):
+    """Equation 5 plus the switch cost, part by part: S_t = (aircraft, destination, last, before_last),
+    S_{t+1} = (next aircraft, next destination, action, last), terminal unless the outcome is RUNNING."""
+    params = dataclasses.replace(CUSTOM, use_continuous_action=use_c, use_position=use_p, switch_cost=switch_cost)
+    aircraft, destination = random_states(8, seed=5)
+    next_aircraft, next_destination = random_states(8, seed=6)
+    last = torch.tensor([0, 3, 3, 1, 1, 0, 2, 2])
+    before_last = torch.tensor([0, 0, 3, 3, 1, 1, 2, 5])
+    action = torch.tensor([0, 3, 1, 1, 0, 0, 2, 6])
+    outcome = torch.tensor([Outcome.RUNNING, Outcome.RUNNING, Outcome.SUCCESS, Outcome.OUT_OF_AIRSPACE,
+                            Outcome.BUDGET_EXHAUSTED, Outcome.RUNNING, Outcome.SUCCESS, Outcome.RUNNING])
+    total, parts = step_reward(outcome, aircraft, destination, last, before_last, action, next_aircraft,
+                               next_destination, params)
+    assert tuple(parts) == REWARD_PART_KEYS
+    torch.testing.assert_close(sum(parts.values()), total, rtol=0, atol=0)
+    termination_values = {Outcome.RUNNING: 0.0, Outcome.SUCCESS: 7.0, Outcome.OUT_OF_AIRSPACE: -3.0,
+                          Outcome.BUDGET_EXHAUSTED: -2.0}
+    for i in range(8):
+        running = int(outcome[i]) == Outcome.RUNNING
+        c_before = params.action_change if int(last[i]) != int(before_last[i]) else params.action_hold
+        c_after = params.action_change if int(action[i]) != int(last[i]) else params.action_hold
+        p_before = hand_position_potential(aircraft[i], destination[i], params)
+        p_after = hand_position_potential(next_aircraft[i], next_destination[i], params)
+        expected = {
+            "reward_termination": termination_values[Outcome(int(outcome[i]))],
+            "reward_action_shaping": (0.9 * c_after * running - c_before) * use_c,
+            "reward_position_shaping": (0.9 * p_after * running - p_before) * use_p,
+            "reward_switch_cost": -switch_cost * (int(action[i]) != int(last[i])),
+        }
+        for key, value in expected.items():
+            assert float(parts[key][i]) == pytest.approx(value, rel=1e-6, abs=1e-6), (key, i)
+        assert float(total[i]) == pytest.approx(sum(expected.values()), rel=1e-6, abs=1e-6)
 
 
 def run_episodes(params: GuidanceParameters, num_envs: int, seed: int):

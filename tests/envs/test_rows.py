@@ -1,4 +1,4 @@
-"""The one-row Python forms (agrl/envs/rows.py) compute what agrl.core's batched torch functions compute."""
+"""The one-row Python forms (agrl/rows.py) compute what agrl.core's batched torch functions compute."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ import torch
 from agrl.core.aircraft import AircraftLimits
 from agrl.core.initial_states import sample_initial_aircraft, scale_distribution
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
-from agrl.core.reward import potential, step_reward, switch_cost_reward
+from agrl.core.reward import potential, step_reward
 from agrl.core.termination import Airspace, Outcome
-from agrl.envs.rows import initial_aircraft_row, observation_row, potential_row, step_reward_row
+from agrl.rows import initial_aircraft_row, observation_row, potential_row, step_reward_row
 
 
 def random_states(count: int, seed: int = 0):
@@ -57,23 +57,30 @@ def test_observation_row_follows_a_different_airspace():
                          [(True, True, 0.0), (True, False, 0.0), (False, True, 0.0), (False, False, 0.0),
                           (True, True, 0.1)])
 def test_potential_and_reward_rows_equal_the_torch_reward(continuous, position, switch_cost, paper_parameters):
+    """potential_row is agrl.core.reward.potential and step_reward_row (on two potential_row values) is the total
+    of agrl.core.reward.step_reward, the one batched assembly of the reward, on random transitions."""
     params = dataclasses.replace(paper_parameters.reward, use_continuous_action=continuous, use_position=position,
                                  switch_cost=switch_cost)
     aircraft, destination, last_action, before_last = random_states(200, seed=2)
-    before_last[::3] = last_action[::3]  # held actions too (equation 9's c5)
-    terminal = torch.arange(200) % 5 == 0
-    outcome = torch.arange(200) % len(Outcome)
-    expected_potential = potential(aircraft, destination, last_action, before_last, terminal, params)
+    next_aircraft, next_destination, action, _ = random_states(200, seed=3)
+    before_last[::3] = last_action[::3]  # held actions too (equation 9's c5) ...
+    action[1::3] = last_action[1::3]  # ... and decisions that hold the maneuver (no switch cost)
+    outcome = torch.arange(200) % len(Outcome)  # every outcome; S_{t+1} is terminal unless RUNNING
+    terminal = outcome != Outcome.RUNNING
     # float64 inputs: the continuous-action term is float32 in agrl.core (c4, c5 are exact in neither)
-    # The action of each step is last_action; it switched if it differs from the maneuver before it.
-    expected_reward = (step_reward(outcome, expected_potential.roll(1), expected_potential, params)
-                       + switch_cost_reward(last_action, before_last, params))
+    expected_before = potential(aircraft, destination, last_action, before_last, torch.zeros_like(terminal), params)
+    expected_after = potential(next_aircraft, next_destination, action, last_action, terminal, params)
+    expected_reward, _ = step_reward(outcome, aircraft, destination, last_action, before_last, action,
+                                     next_aircraft, next_destination, params)
     for index in range(200):
-        value = potential_row(aircraft[index].tolist(), destination[index].tolist(), int(last_action[index]),
-                              int(before_last[index]), bool(terminal[index]), params)
-        assert math.isclose(value, float(expected_potential[index]), rel_tol=0, abs_tol=1e-7)
-        reward = step_reward_row(int(outcome[index]), float(expected_potential.roll(1)[index]), value, params,
-                                 switched=bool(last_action[index] != before_last[index]))
+        before = potential_row(aircraft[index].tolist(), destination[index].tolist(), int(last_action[index]),
+                               int(before_last[index]), False, params)
+        after = potential_row(next_aircraft[index].tolist(), next_destination[index].tolist(), int(action[index]),
+                              int(last_action[index]), bool(terminal[index]), params)
+        assert math.isclose(before, float(expected_before[index]), rel_tol=0, abs_tol=1e-7)
+        assert math.isclose(after, float(expected_after[index]), rel_tol=0, abs_tol=1e-7)
+        reward = step_reward_row(int(outcome[index]), before, after, params,
+                                 switched=bool(action[index] != last_action[index]))
         assert math.isclose(reward, float(expected_reward[index]), rel_tol=0, abs_tol=1e-6)
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 import torch
 
@@ -14,11 +16,28 @@ from agrl.rl.distill import distill
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
 
+#: The teachers' simulation: 30 substeps per 3 s decision instead of the baseline's 150 (a 0.1 s integration step
+#: instead of 0.02 s), and a budget of 60 decisions instead of 200 (a collection round flies one budget).
+COARSE_SIMULATION = {"integration_step": 0.1, "max_decisions": 60}
+
 
 @pytest.fixture(scope="module")
-def student(tmp_path_factory):
+def coarse_baseline(tmp_path_factory) -> Path:
+    """The shipped baseline's networks and config, with :data:`COARSE_SIMULATION` in its saved simulation: a
+    distillation flies its teacher's task as saved, and a round then costs a sixteenth. What is distilled (the
+    networks' answers on the visited states) does not depend on the step or the budget."""
+    from agrl.rl.checkpoint import resolve_checkpoint_path, save_checkpoint
+
+    payload = load_checkpoint(resolve_checkpoint_path("baseline"), required=("actor", "critic", "config"))
+    config = {**payload["config"], "simulation": {**payload["config"]["simulation"], **COARSE_SIMULATION}}
+    kept = {key: value for key, value in payload.items() if key != "config_yaml"}  # the YAML is of the old config
+    return save_checkpoint({**kept, "config": config}, tmp_path_factory.mktemp("teacher") / "coarse_baseline.pt")
+
+
+@pytest.fixture(scope="module")
+def student(tmp_path_factory, coarse_baseline):
     path = tmp_path_factory.mktemp("distill") / "student.pt"
-    summary = distill("baseline", path, rounds=2, envs=48, epochs=40, minibatch=512, evaluation_episodes=64,
+    summary = distill(coarse_baseline, path, rounds=2, envs=48, epochs=40, minibatch=512, evaluation_episodes=64,
                       compile=False, log=lambda line: None)
     return path, summary
 
@@ -31,13 +50,15 @@ def test_the_student_reads_the_absolute_observation_and_keeps_the_teachers_task(
     assert payload["config"]["task"] == teacher["config"]["task"]
     assert payload["actor"]["module.0.module.0.weight"].shape[1] == observation_size("absolute")
     assert payload["critic"]["module.0.weight"].shape[1] == observation_size("absolute")
-    assert summary["rounds"] == 2 and summary["states"] == 2 * 48 * 200  # two rounds of a 200-decision budget
+    assert payload["config"]["simulation"] == teacher["config"]["simulation"]
+    # Two rounds of the teacher's 60-decision budget.
+    assert summary["rounds"] == 2 and summary["states"] == 2 * 48 * COARSE_SIMULATION["max_decisions"]
 
 
-def test_the_student_flies_as_the_teacher_on_states_it_was_not_trained_on(student):
+def test_the_student_flies_as_the_teacher_on_states_it_was_not_trained_on(student, coarse_baseline):
     path, _ = student
     student_actor, saved, _ = load_agent(str(path))
-    teacher_actor, _, _ = load_agent("baseline")
+    teacher_actor, _, _ = load_agent(str(coarse_baseline))
     from agrl.config import saved_guidance_parameters
 
     params = saved_guidance_parameters(saved, compile=False)
@@ -79,23 +100,23 @@ def test_a_guide_refuses_the_absolute_student_in_one_line(student):
 
 
 @pytest.fixture(scope="module")
-def ensemble_student(tmp_path_factory):
-    """Two teachers that disagree on many states: the shipped baseline and a copy with perturbed weights."""
-    from agrl.rl.checkpoint import resolve_checkpoint_path, save_checkpoint
+def ensemble_student(tmp_path_factory, coarse_baseline):
+    """Two teachers that disagree on many states: the (coarse) baseline and a copy with perturbed weights."""
+    from agrl.rl.checkpoint import save_checkpoint
 
     folder = tmp_path_factory.mktemp("ensemble")
-    baseline = load_checkpoint(resolve_checkpoint_path("baseline"), required=("actor", "critic", "config"))
+    baseline = load_checkpoint(coarse_baseline, required=("actor", "critic", "config"))
     generator = torch.Generator().manual_seed(3)
     perturbed = {name: tensor + 0.3 * tensor.std() * torch.randn(tensor.shape, generator=generator)
                  for name, tensor in baseline["actor"].items()}
     other = save_checkpoint({**baseline, "actor": perturbed}, folder / "perturbed.pt")
     path = folder / "student.pt"
-    summary = distill(["baseline", other], path, observation="relative", rounds=2, envs=48, epochs=40,
+    summary = distill([coarse_baseline, other], path, observation="relative", rounds=2, envs=48, epochs=40,
                       minibatch=512, evaluation_episodes=64, compile=False, log=lambda line: None)
     return path, other, summary
 
 
-def test_an_ensemble_of_teachers_is_distilled_into_one_network_of_the_usual_size(ensemble_student):
+def test_an_ensemble_of_teachers_is_distilled_into_one_network_of_the_usual_size(ensemble_student, coarse_baseline):
     from agrl.config import saved_guidance_parameters
     from agrl.rl.models import logits_network, make_ensemble_actor
 
@@ -107,7 +128,7 @@ def test_an_ensemble_of_teachers_is_distilled_into_one_network_of_the_usual_size
     assert len(summary["distilled_from"]) == 2 and summary["distilled_from"][1] == str(other)
     assert summary["teacher_evaluation"]["episodes"] == summary["evaluation"]["episodes"] == 64
 
-    members = [load_agent(reference)[0] for reference in ("baseline", str(other))]
+    members = [load_agent(reference)[0] for reference in (str(coarse_baseline), str(other))]
     ensemble = make_ensemble_actor(members)
     student_actor, saved, _ = load_agent(str(path))
     params = saved_guidance_parameters(saved, compile=False)
@@ -121,24 +142,24 @@ def test_an_ensemble_of_teachers_is_distilled_into_one_network_of_the_usual_size
     assert agreement > 0.7, agreement
 
 
-def test_teachers_of_different_observations_are_refused_in_one_line(student, tmp_path):
+def test_teachers_of_different_observations_are_refused_in_one_line(student, coarse_baseline, tmp_path):
     from agrl.config import ConfigError
 
-    absolute_student, _ = student
+    absolute_student, _ = student  # of the coarse teacher's task and simulation: only the observation differs
     with pytest.raises(ConfigError, match="observation=absolute is not allowed in this ensemble") as error:
-        distill(["baseline", absolute_student], tmp_path / "out.pt", observation="relative", compile=False,
+        distill([coarse_baseline, absolute_student], tmp_path / "out.pt", observation="relative", compile=False,
                 log=lambda line: None)
     assert "\n" not in str(error.value) and not (tmp_path / "out.pt").exists()
 
 
-def test_a_student_started_from_its_teacher_starts_where_it_stands(tmp_path):
+def test_a_student_started_from_its_teacher_starts_where_it_stands(tmp_path, coarse_baseline):
     """``init`` is where the student starts: from the teacher itself one short epoch leaves it nearly the teacher
     (Adam's first steps move it by about the learning rate whatever the gradient), where a fresh student after
     the same epoch agrees far less."""
     settings = dict(observation="relative", rounds=1, envs=32, epochs=1, minibatch=512, evaluation_episodes=32,
                     compile=False, log=lambda line: None)
-    started = distill("baseline", tmp_path / "started.pt", init="baseline", **settings)
-    fresh = distill("baseline", tmp_path / "fresh.pt", **settings)
+    started = distill(coarse_baseline, tmp_path / "started.pt", init="baseline", **settings)  # its networks
+    fresh = distill(coarse_baseline, tmp_path / "fresh.pt", **settings)
     assert started["initialised_from"] == "baseline" and fresh["initialised_from"] is None
     assert started["agreement"] > 0.95 and started["agreement"] > fresh["agreement"] + 0.2, (started, fresh)
 

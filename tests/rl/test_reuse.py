@@ -38,7 +38,7 @@ from agrl.core.observation import (
     in_destination_frame,
     policy_observation,
 )
-from agrl.core.reward import potential, step_reward
+from agrl.core.reward import step_reward
 from agrl.core.termination import Outcome
 from agrl.envs import GuidanceEnv, GuidanceParameters, MotionKind
 from agrl.rl.checkpoint import save_checkpoint
@@ -442,15 +442,11 @@ def test_rewards_are_the_environments_for_the_real_destination(relabelled):
     trajectories, lengths = relabelled.trajectories, relabelled.lengths
     reward_params = relabelled.collected.env.params.reward
 
-    def phi(state, terminal):
-        return potential(state["aircraft_state"], state["destination_state"], state["last_action"],
-                         state["action_before_last"], terminal, reward_params)
-
     for episode in range(trajectories.shape[0]):
         rows = trajectories[episode, : int(lengths[episode])]
-        terminal = rows["next", "done"].squeeze(-1)
-        expected = step_reward(rows["next", "outcome"], phi(rows, torch.zeros_like(terminal)),
-                               phi(rows["next"], terminal), reward_params)
+        expected, _ = step_reward(rows["next", "outcome"], rows["aircraft_state"], rows["destination_state"],
+                                  rows["last_action"], rows["action_before_last"], rows["action"],
+                                  rows["next", "aircraft_state"], rows["next", "destination_state"], reward_params)
         torch.testing.assert_close(rows["next", "reward"].squeeze(-1), expected)
         assert float(rows["next", "reward"][-1]) > 10.0, "the success pays c1"
 

@@ -1,23 +1,52 @@
-"""One-row (Python float) forms of the policy observation and the reward, for unbatched callers.
+"""One-row (Python float) forms of the policy observation and the reward: a deliberate second copy of the model.
 
-On one row, the batched torch functions of :mod:`agrl.core` cost a few microseconds per
-tensor operation: one 3 s decision (150 integration steps, about a hundred operations each)
-then takes tens of milliseconds, and the observation alone a few hundred microseconds. The
-unbatched gymnasium environment (:mod:`agrl.envs.gym`) and the deployable guide
-(:mod:`agrl.guide`) therefore run one row in plain Python floats:
+Why a second copy: on one row, each operation of :mod:`agrl.core`'s batched torch functions costs microseconds
+of dispatch, so the torch path at batch 1 costs more than the work it does. The unbatched gymnasium environment
+(:mod:`agrl.envs.gym`) and the deployable guide's single query (:meth:`agrl.guide.Guide.instruct`) therefore run
+one row in plain Python floats, with this module and its sibling :mod:`agrl.reference` (the one-row physics,
+the engine of the single env's decision). These two modules are the only second copies of the model; everything
+else calls :mod:`agrl.core`. The figure, per decision of the single env (timeit, best of 5, one torch thread)::
 
-- the decision itself is :func:`agrl.reference.reference_decision`, the pure-Python form of
-  :class:`agrl.core.simulation.DecisionSimulator` that ``tests/test_reference.py`` checks
-  against it (equal to rounding in float64);
+                                   one row, Python floats    agrl.core, batched torch at batch 1
+    observation + reward           3.2 us  (this module)     0.52 ms  (policy_observation + step_reward)   ~165x
+      of which the reward          1.2 us                    0.37 ms  (step_reward)                        ~300x
+    the decision (150 steps)       0.13 ms (agrl.reference)  46 ms    (DecisionSimulator, eager)           ~350x
+
+measured once on 2026-12-04 on the 2-core development machine while it was shared (load average about 5, so
+the absolute times are pessimistic; the ratios are what matter), one process at a time, as
+``python -m timeit -s "$SETUP" "$STATEMENT"`` with SETUP::
+
+    import torch; torch.set_num_threads(1)
+    from agrl.config import guidance_parameters
+    from agrl.core.observation import policy_observation
+    from agrl.core.reward import step_reward
+    from agrl.core.simulation import DecisionSimulator
+    from agrl.reference import reference_decision
+    from agrl.rows import observation_row, potential_row, step_reward_row
+    p = guidance_parameters(); s, r = p.simulation, p.reward
+    a, d = (-5000.0, 0.0, 2500.0, 200.0, 0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0)
+    A, D, L, N, O = torch.tensor([a]), torch.tensor([d]), torch.tensor([0]), torch.tensor([3]), torch.tensor([0])
+    Z = torch.zeros(1); sim = DecisionSimulator(s, p.maneuvers.controls("cpu"))
+
+and the STATEMENTs ``observation_row(a, d, 3, s.airspace, s.limits); step_reward_row(0, potential_row(a, d, 0,
+0, False, r), potential_row(a, d, 3, 0, False, r), r, True)`` against ``policy_observation(A, D, N, s.airspace,
+s.limits); step_reward(O, A, D, L, L, N, A, D, r)``, and ``reference_decision(a, d, 0.0, 0.0, 1, s,
+p.maneuvers)`` against ``sim(A, D, Z, Z, torch.tensor([1]))``.
+
+What each function copies:
+
 - :func:`observation_row` is :func:`agrl.core.observation.policy_observation`, term by term;
-- :func:`potential_row` and :func:`step_reward_row` are :func:`agrl.core.reward.potential`
-  and :func:`agrl.core.reward.step_reward` (equations 5-11);
+- :func:`potential_row` is :func:`agrl.core.reward.potential` (equations 8-11), and :func:`step_reward_row` on
+  two of its values is the total of :func:`agrl.core.reward.step_reward` (equation 5 plus the switch cost), the
+  one batched assembly of the reward (the single env keeps Phi(S_{t+1}) as the next step's Phi(S_t), so it
+  evaluates one potential per step);
 - :func:`initial_aircraft_row` is :func:`agrl.core.initial_states.sample_initial_aircraft` for one row: the
   same draws from the same generator in the same order, in float32 arithmetic, so the same starts to the bit
   (a one-row torch reset cost more than a whole 3 s decision here).
 
-``tests/envs/test_rows.py`` checks each against its torch original in float64 (equal to 1e-12)
-on random states, so a change in :mod:`agrl.core` that is not made here fails a test.
+``tests/envs/test_rows.py`` checks each against its torch original on random states (the observation to 1e-12
+in float64, the potential and the reward to 1e-7 and 1e-6: c4 and c5 are float32 in :mod:`agrl.core`), so a
+change in :mod:`agrl.core` that is not made here fails a test.
 """
 
 from __future__ import annotations
@@ -110,8 +139,9 @@ def potential_row(
 
 def step_reward_row(outcome: int, potential_before: float, potential_after: float, params: RewardParameters,
                     switched: bool = False) -> float:
-    """:func:`agrl.core.reward.step_reward` (equations 5-7) plus :func:`agrl.core.reward.switch_cost_reward`
-    (``switched``: this decision changed the maneuver being flown) for one row."""
+    """The total of :func:`agrl.core.reward.step_reward` (equation 5 plus the switch cost) for one row, from the
+    two :func:`potential_row` values Phi(S_t), Phi(S_{t+1}) (``switched``: this decision changed the maneuver being
+    flown). One sum over Phi = C + P, where the batched function sums C's and P's shaping apart: equal to rounding."""
     # Plain int comparisons: the single gymnasium env calls this at every decision.
     if outcome == _RUNNING:
         termination = 0.0
