@@ -68,6 +68,13 @@ def feeds(target: str, convert: Callable[[Any], Any] | None = None, default: Any
 
 # ---------------------------------------------------------------------------- task
 # A field one task does not use is None (e.g. a fixed destination's radius); the task's own YAML sets it.
+#: The largest destination speed a task takes (m/s): ten times the paper's fastest (100 m/s), far above any target
+#: in the airspace, and small enough that the float32 simulation stays finite.
+MAX_DESTINATION_SPEED = 1_000.0
+#: The largest turning radius a curved task takes (m): a thousand times the paper's largest (5 000 m), beyond
+#: which the motion is a straight line for every episode's length.
+MAX_TURNING_RADIUS = 5_000_000.0
+
 @dataclass
 class TaskConfig:
     name: str = feeds("destination.kind", MotionKind)  # fixed | uniform | curved | irregular
@@ -86,16 +93,18 @@ class TaskConfig:
         for key in needs:
             _require(getattr(self, key) is not None, f"task.{key}", None, f"task={self.name} needs a value")
         if self.name in ("uniform", "curved"):
-            _require(self.speed > 0, "speed", self.speed, f"task={self.name} needs a destination speed > 0 m/s")
+            _require(0 < self.speed <= MAX_DESTINATION_SPEED, "speed", self.speed,
+                     f"task={self.name} needs a destination speed in (0, {MAX_DESTINATION_SPEED:g}] m/s")
         if self.name == "curved":
-            _require(self.radius > 0, "radius", self.radius, "task=curved needs a turning radius > 0 m")
+            _require(0 < self.radius <= MAX_TURNING_RADIUS, "radius", self.radius,
+                     f"task=curved needs a turning radius in (0, {MAX_TURNING_RADIUS:g}] m")
         if self.turn_direction is not None:
             _require(self.turn_direction in (-1, 1), "task.turn_direction", self.turn_direction, "-1 or 1")
         if self.change_probability is not None:
             _require(0 <= self.change_probability <= 1, "task.change_probability", self.change_probability,
                      "[0, 1]")
         if self.speed_range is not None:
-            _range_pair("task.speed_range", self.speed_range, 0.0, 1_000.0, "m/s")
+            _range_pair("task.speed_range", self.speed_range, 0.0, MAX_DESTINATION_SPEED, "m/s")
         if self.max_turn_rate_deg is not None:
             _require(self.max_turn_rate_deg >= 0, "task.max_turn_rate_deg", self.max_turn_rate_deg, ">= 0 deg/s")
 

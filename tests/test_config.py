@@ -135,7 +135,9 @@ def test_unknown_task_names_the_value():
 @pytest.mark.parametrize(("overrides", "message"), [
     (("task=bogus",), "task=bogus is not allowed: one of curved, fixed, irregular, uniform"),
     (("task=uniform", "bogus=1"), "bogus=1 is not allowed: the config has no key 'bogus'; its keys: task, reward, "),
-    (("task=uniform", "speed=-5"), "speed=-5.0 is not allowed: task=uniform needs a destination speed > 0 m/s"),
+    (("task=uniform", "speed=-5"), "speed=-5.0 is not allowed: task=uniform needs a destination speed in (0, 1000]"),
+    (("task=uniform", "speed=1e20"), "speed=1e+20 is not allowed: task=uniform needs a destination speed in (0, 1000]"),
+    (("task=curved", "radius=1e12"), "radius=1000000000000.0 is not allowed: task=curved needs a turning radius in "),
 ])
 def test_guidance_parameters_refuse_overrides_as_the_command_line_does(overrides, message):
     # The README's `guidance_parameters("task=curved", ...)`: "overrides as on the command line", errors too.
