@@ -19,9 +19,44 @@ REPO = Path(__file__).resolve().parents[1]
 REQUIRED = {"name", "value", "unit"}
 
 
-def test_quick_run_prints_json_lines():
-    command = [sys.executable, "-m", "benchmarks.bench", "--quick", "--batch-sizes", "8", "32", "--env-batch", "8"]
-    completed = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=REPO)
+#: The benchmark runs tested here: {name: ``python -m`` arguments}; the last two need stable-baselines3.
+BENCHMARK_RUNS = {
+    "bench": ("benchmarks.bench", "--quick", "--batch-sizes", "8", "32", "--env-batch", "8"),
+    "peer": ("benchmarks.bench_peer", "--num-envs", "16", "--steps", "8", "--iterations", "2", "--minibatch", "64",
+             "--no-compile", "--threads", "1", "--trainers", "agrl", "agrl-compiled", "stable-baselines3", "floor"),
+    "race": ("benchmarks.bench_race", "--budget-seconds", "2", "--eval-every", "1", "--eval-episodes", "8",
+             "--max-decisions", "4", "--no-compile", "--threads", "1", "--sb3-geometry", "agrl", "--agrl-override",
+             "ppo.num_envs=16", "ppo.steps_per_env=4", "ppo.minibatch_size=32"),
+}
+
+
+@pytest.fixture(scope="module")
+def benchmark_runs() -> dict[str, subprocess.CompletedProcess]:
+    """Each of :data:`BENCHMARK_RUNS` (those that need stable-baselines3 only with it), all at once."""
+    import importlib.util
+
+    names = [name for name in BENCHMARK_RUNS
+             if name == "bench" or importlib.util.find_spec("stable_baselines3") is not None]
+    started = {}
+    for name in names:
+        command = [sys.executable, "-m", *BENCHMARK_RUNS[name]]
+        started[name] = (command, subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                                   text=True))
+    results = {}
+    try:
+        for name, (command, process) in started.items():
+            stdout, stderr = process.communicate(timeout=600)
+            results[name] = subprocess.CompletedProcess(command, process.returncode, stdout, stderr)
+    finally:
+        for _, process in started.values():
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+    return results
+
+
+def test_quick_run_prints_json_lines(benchmark_runs):
+    completed = benchmark_runs["bench"]
     assert completed.returncode == 0, completed.stderr
     lines = [line for line in completed.stdout.splitlines() if line.strip()]
     records = [json.loads(line) for line in lines]  # every line is one JSON object
@@ -95,14 +130,11 @@ def test_iteration_record_reports_the_median_split():
     assert record["decisions_per_second"] == 25.0 and record["iterations_timed"] == 3
 
 
-def test_peer_benchmark_prints_the_split_for_each_trainer_and_the_ratios():
+def test_peer_benchmark_prints_the_split_for_each_trainer_and_the_ratios(benchmark_runs):
     """``python -m benchmarks.bench_peer`` at a tiny geometry: one iteration line per trainer (agrl, agrl with the
     compiled loss, SB3 and the plain PyTorch floor), then each one's ratio to SB3."""
     pytest.importorskip("stable_baselines3")
-    command = [sys.executable, "-m", "benchmarks.bench_peer", "--num-envs", "16", "--steps", "8", "--iterations", "2",
-               "--minibatch", "64", "--no-compile", "--threads", "1", "--trainers", "agrl", "agrl-compiled",
-               "stable-baselines3", "floor"]
-    completed = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=REPO)
+    completed = benchmark_runs["peer"]
     assert completed.returncode == 0, completed.stderr
     records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
     assert [record["name"] for record in records] == ["ppo_iteration_seconds"] * 4 + [
@@ -119,15 +151,11 @@ def test_peer_benchmark_prints_the_split_for_each_trainer_and_the_ratios():
         assert ratio["update_ratio"] == pytest.approx(sb3["update_s"] / trainer["update_s"], rel=1e-2)
 
 
-def test_race_prints_both_trainers_evaluations_and_results():
+def test_race_prints_both_trainers_evaluations_and_results(benchmark_runs):
     """``python -m benchmarks.bench_race`` with a budget of seconds: both trainers train, both fly the same evaluation
     set."""
     pytest.importorskip("stable_baselines3")
-    command = [sys.executable, "-m", "benchmarks.bench_race", "--budget-seconds", "2", "--eval-every", "1",
-               "--eval-episodes", "8", "--max-decisions", "4", "--no-compile", "--threads", "1",
-               "--sb3-geometry", "agrl", "--agrl-override", "ppo.num_envs=16", "ppo.steps_per_env=4",
-               "ppo.minibatch_size=32"]
-    completed = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=REPO)
+    completed = benchmark_runs["race"]
     assert completed.returncode == 0, completed.stderr
     records = [json.loads(line) for line in completed.stdout.splitlines() if line.strip()]  # JSON lines only
     assert all(REQUIRED <= set(record) for record in records)

@@ -16,11 +16,36 @@ from benchmarks.bench_reuse import parse_args
 REPO = Path(__file__).resolve().parents[1]
 
 
-def test_quick_run_times_each_candidate_count(tmp_path):
-    command = [sys.executable, "-m", "benchmarks.bench_reuse", "--quick", "--candidates", "2", "4"]
+#: The runs of ``python -m benchmarks.bench_reuse`` tested here: {name: its arguments}.
+QUICK_RUNS = {"candidates": ("--quick", "--candidates", "2", "4"),
+              "after_training": ("--quick", "--candidates", "2", "--iterations", "1")}
+
+
+@pytest.fixture(scope="module")
+def quick_runs(tmp_path_factory) -> dict[str, subprocess.CompletedProcess]:
+    """Each of :data:`QUICK_RUNS`, all at once, each in its own temporary folder."""
     # Small tensors: one thread (see conftest).
     environment = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
-    completed = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path, env=environment)
+    started = {}
+    for name, arguments in QUICK_RUNS.items():
+        command = [sys.executable, "-m", "benchmarks.bench_reuse", *arguments]
+        started[name] = (command, subprocess.Popen(command, cwd=tmp_path_factory.mktemp(name), env=environment,
+                                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+    results = {}
+    try:
+        for name, (command, process) in started.items():
+            stdout, stderr = process.communicate(timeout=600)
+            results[name] = subprocess.CompletedProcess(command, process.returncode, stdout, stderr)
+    finally:
+        for _, process in started.values():
+            if process.poll() is None:
+                process.kill()
+                process.wait()
+    return results
+
+
+def test_quick_run_times_each_candidate_count(quick_runs):
+    completed = quick_runs["candidates"]
     assert completed.returncode == 0, completed.stderr
     records = [json.loads(line) for line in completed.stdout.splitlines() if line.strip()]
     assert [record["name"] for record in records] == ["machine", "reuse_relabel", "reuse_relabel"]
@@ -40,10 +65,8 @@ def test_quick_run_times_each_candidate_count(tmp_path):
         assert record["episodes_searched"] == record["episodes_selected"] and record["episodes_carried"] == 0
 
 
-def test_after_training_iterations_the_batch_continues_episodes_of_the_one_before(tmp_path):
-    command = [sys.executable, "-m", "benchmarks.bench_reuse", "--quick", "--candidates", "2", "--iterations", "1"]
-    environment = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
-    completed = subprocess.run(command, capture_output=True, text=True, timeout=600, cwd=tmp_path, env=environment)
+def test_after_training_iterations_the_batch_continues_episodes_of_the_one_before(quick_runs):
+    completed = quick_runs["after_training"]
     assert completed.returncode == 0, completed.stderr
     # The trainer's replay buffer logs a line when it first fills (torchrl's logger writes to stdout).
     records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]

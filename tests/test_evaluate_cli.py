@@ -31,19 +31,23 @@ def read_csv(path):
 
 @pytest.fixture(scope="module")
 def cli_runs(tiny_run, run_cli, tmp_path_factory):
-    """The evaluation CLI on the shared tiny run, and on a corrupt checkpoint, run at once."""
+    """The evaluation CLI on the shared tiny run, on a corrupt checkpoint and on two bad command lines, run at once
+    as real processes; the other bad command lines through the same checks in process (``run_cli.checks``: each
+    is refused before Hydra runs, where a real process would add only its start-up)."""
     directory = tmp_path_factory.mktemp("evaluate_cli")
     truncated = directory / "truncated.pt"
     data = (tiny_run.run_dir / "checkpoints" / "best.pt").read_bytes()
     truncated.write_bytes(data[: len(data) // 3])
-    jobs = {
+    refused = {case: ("evaluate", *arguments, f"hydra.run.dir={directory / case}")
+               for case, (arguments, _) in ONE_LINE_ERRORS.items()}
+    processes = run_cli.batch({
         "seed3": ("evaluate", f"checkpoint={tiny_run.run_dir}", "episodes=20", "seed=3",
                   f"hydra.run.dir={directory / 'seed3'}"),
         "truncated": ("evaluate", f"checkpoint={truncated}", f"hydra.run.dir={directory / 'truncated'}"),
-        **{case: ("evaluate", *arguments, f"hydra.run.dir={directory / case}")
-           for case, (arguments, _) in ONE_LINE_ERRORS.items()},
-    }
-    return {"directory": directory, "truncated_file": truncated, **run_cli.batch(jobs)}
+        **{case: refused[case] for case in REAL_PROCESS_CASES},
+    })
+    in_process = {case: run_cli.checks(*job) for case, job in refused.items() if case not in REAL_PROCESS_CASES}
+    return {"directory": directory, "truncated_file": truncated, **in_process, **processes}
 
 
 #: Bad command lines and what their one-line error must say: {case: (arguments, fragments of the line)}.
@@ -61,6 +65,9 @@ ONE_LINE_ERRORS = {
                           ("output_dir=/dev/null/evaluation is not allowed: /dev/null/evaluation/eval.json: cannot be "
                            "written: /dev/null is a file, not a folder",)),
 }
+
+#: Bad command lines that run as real processes too: a missing key, and an output folder that cannot be written.
+REAL_PROCESS_CASES = ("no-checkpoint", "unwritable-output")
 
 
 @pytest.mark.parametrize("case", sorted(ONE_LINE_ERRORS))

@@ -6,15 +6,28 @@ import json
 
 import pytest
 
+LAUNCHERS = ("joblib", "submitit_local")
 
-@pytest.mark.parametrize("launcher", ["joblib", "submitit_local"])
-def test_launcher_runs_every_job_of_a_sweep(tmp_path, run_cli, tiny_args, launcher):
-    sweep = tmp_path / "sweep"
-    extra = ["hydra.launcher.n_jobs=2"] if launcher == "joblib" else ["hydra.launcher.timeout_min=10"]
-    result = run_cli("train", "-m", f"hydra/launcher={launcher}", *extra,
-                     *[arg for arg in tiny_args({"ppo.total_frames": 512, "eval.episodes": 4})
-                       if not arg.startswith("seed=")],
-                     "seed=0,1", f"hydra.sweep.dir={sweep}", "hydra.sweep.subdir=seed_${seed}", timeout=600)
+
+@pytest.fixture(scope="module")
+def sweeps(run_cli, tiny_args, tmp_path_factory):
+    """A two-seed sweep of tiny runs through each launcher, both sweeps at once: {launcher: (sweep directory,
+    CompletedProcess)}."""
+    folder = tmp_path_factory.mktemp("sweeps")
+    jobs = {}
+    for launcher in LAUNCHERS:
+        extra = ["hydra.launcher.n_jobs=2"] if launcher == "joblib" else ["hydra.launcher.timeout_min=10"]
+        jobs[launcher] = ("train", "-m", f"hydra/launcher={launcher}", *extra,
+                          *[arg for arg in tiny_args({"ppo.total_frames": 512, "eval.episodes": 4})
+                            if not arg.startswith("seed=")],
+                          "seed=0,1", f"hydra.sweep.dir={folder / launcher}", "hydra.sweep.subdir=seed_${seed}")
+    results = run_cli.batch(jobs, timeout=600)
+    return {launcher: (folder / launcher, results[launcher]) for launcher in LAUNCHERS}
+
+
+@pytest.mark.parametrize("launcher", LAUNCHERS)
+def test_launcher_runs_every_job_of_a_sweep(sweeps, launcher):
+    sweep, result = sweeps[launcher]
     assert result.returncode == 0, result.stderr[-3000:]
     summaries = {path.parent.parent.name: json.loads(path.read_text()) for path in sweep.glob("*/eval/eval.json")}
     # One run directory per job (subdir = the job's overrides), each trained and evaluated with its own seed.

@@ -9,6 +9,8 @@ import random
 import signal
 import subprocess
 import time
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -136,35 +138,100 @@ def test_tiny_run_tensorboard_trajectory_images(tiny_run):
         assert len(np.unique(picture.reshape(-1, 3), axis=0)) > 50
 
 
-# ---------------------------------------------------------------------------- Ctrl-C
-@pytest.mark.usefixtures("torch_one_thread")
-def test_ctrl_c_saves_latest_and_resume_continues(tmp_path, run_cli, tiny_args, compose_train):
-    run = tmp_path / "run"
-    # No periodic `latest` (checkpoint_interval=1000): the checkpoint must come from the interrupt handler.
-    command = run_cli.command("train", *tiny_args({"ppo.total_frames": 10**9, "checkpoint_interval": 1000}),
-                              f"hydra.run.dir={run}")
-    latest = run / "checkpoints" / "latest.pt"
-    with (tmp_path / "stdout").open("w") as out, (tmp_path / "stderr").open("w") as err:
-        process = subprocess.Popen(
-            command, cwd=run_cli.cwd, env=run_cli.environment(), stdout=out, stderr=err,
-            # The default SIGINT handler (KeyboardInterrupt), even if the test runner ignores SIGINT.
-            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-        )
-        try:
-            deadline = time.monotonic() + 120
-            # Two logged steps: iteration 1 is complete, snapshot included.
-            while len(read_metrics(run)) < 2:
-                assert process.poll() is None, (tmp_path / "stderr").read_text()[-3000:]
-                assert time.monotonic() < deadline, "two iterations did not finish within 120 s"
-                time.sleep(0.05)
-            assert not latest.exists()
-            process.send_signal(signal.SIGINT)
-            code = process.wait(timeout=60)
-        finally:
+# ---------------------------------------------------------------------------- Ctrl-C and pre-emption
+#: Iterations of a pre-empted run (the signal comes after the first; the same command finishes the rest).
+PREEMPTED_ITERATIONS = 12
+#: The signals sent, each to its own run: Ctrl-C, and what Slurm and submitit send before a pre-emption or a time
+#: limit.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1, signal.SIGUSR2)
+
+
+#: Seconds a run may take to exit after its signal (a scheduler's grace period is about 30 s).
+EXIT_WITHIN = {"SIGINT": 60, "SIGTERM": 30, "SIGUSR1": 30, "SIGUSR2": 30}
+
+
+@dataclass
+class StoppedRun:
+    run: Path
+    arguments: tuple[str, ...]
+    signalled: float  # time.time() when the signal was sent
+    code: int
+    stderr: str
+    checkpoints: Path  # a copy of run/checkpoints as the stopped run left it (times kept)
+    again: subprocess.CompletedProcess | None = None  # the same command run again (not for SIGINT)
+
+
+@pytest.fixture(scope="module")
+def stopped_runs(run_cli, tiny_args, tmp_path_factory) -> dict[str, StoppedRun]:
+    """One ``python -m agrl.train`` run per signal of :data:`STOP_SIGNALS`, all at once; each gets its signal as
+    soon as its first iteration is logged, snapshot included. Then the pre-empted ones' commands run again, at
+    once (after their checkpoints were copied). No periodic ``latest`` (checkpoint_interval=1000): a checkpoint
+    must come from the signal."""
+    import shutil
+
+    folder = tmp_path_factory.mktemp("stopped")
+    runs, processes, files = {}, {}, []
+    try:
+        for stop_signal in STOP_SIGNALS:
+            name, run = stop_signal.name, folder / stop_signal.name / "run"
+            (folder / name).mkdir()
+            frames = 10**9 if stop_signal == signal.SIGINT else 512 * PREEMPTED_ITERATIONS
+            arguments = (*tiny_args({"ppo.total_frames": frames, "checkpoint_interval": 1000}),
+                         f"hydra.run.dir={run}")
+            out, err = (folder / name / "stdout").open("w"), (folder / name / "stderr").open("w")
+            files += [out, err]
+            # Ctrl-C: the default SIGINT handler (KeyboardInterrupt), even if the test runner ignores SIGINT.
+            default_sigint = (lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)) if stop_signal == signal.SIGINT \
+                else None
+            processes[name] = (stop_signal, subprocess.Popen(
+                run_cli.command("train", *arguments), cwd=run_cli.cwd, env=run_cli.environment(), stdout=out,
+                stderr=err, preexec_fn=default_sigint))
+            runs[name] = (run, arguments)
+        deadline = time.monotonic() + 120
+        signalled, event_bytes = {}, {}
+        while len(signalled) < len(processes):
+            for name, (stop_signal, process) in processes.items():
+                if name in signalled:
+                    continue
+                run = runs[name][0]
+                assert process.poll() is None, (folder / name / "stderr").read_text()[-3000:]
+                # Parse the events only when they grew (parsing them 50 times a second would take a core).
+                size = sum(path.stat().st_size for path in (run / "tensorboard").glob("events.out.tfevents.*"))
+                if size == event_bytes.get(name, 0):
+                    continue
+                event_bytes[name] = size
+                if len(read_metrics(run)) >= 2:  # two logged steps: iteration 1 is complete
+                    assert not (run / "checkpoints" / "latest.pt").exists()
+                    signalled[name] = time.time()
+                    process.send_signal(stop_signal)
+            assert time.monotonic() < deadline, "two iterations did not finish within 120 s"
+            time.sleep(0.02)
+        codes = {name: process.wait(timeout=max(signalled[name] + EXIT_WITHIN[name] - time.time(), 0.1))
+                 for name, (_, process) in processes.items()}
+    finally:
+        for _, process in processes.values():
             if process.poll() is None:
                 process.kill()
                 process.wait()
-    assert code == 130, (tmp_path / "stderr").read_text()[-3000:]
+        for file in files:
+            file.close()
+    stopped = {}
+    for name, (run, arguments) in runs.items():
+        checkpoints = shutil.copytree(run / "checkpoints", folder / name / "checkpoints_when_stopped")
+        stopped[name] = StoppedRun(run, arguments, signalled[name], codes[name], (folder / name / "stderr").read_text(),
+                                   checkpoints)
+    again = run_cli.batch({name: ("train", *runs[name][1]) for name in runs if name != "SIGINT"})
+    for name, result in again.items():
+        stopped[name].again = result
+    return stopped
+
+
+@pytest.mark.usefixtures("torch_one_thread")
+def test_ctrl_c_saves_latest_and_resume_continues(stopped_runs, compose_train, tiny_args):
+    stopped = stopped_runs["SIGINT"]
+    run = stopped.run
+    latest = run / "checkpoints" / "latest.pt"
+    assert stopped.code == 130, stopped.stderr[-3000:]
     assert "interrupted: saved the last completed iteration" in (run / "train.log").read_text()
     payload = load_checkpoint(latest, required=TRAINING_STATE)
     iteration, frames = payload["counters"]["iteration"], payload["counters"]["frames"]
@@ -181,53 +248,32 @@ def test_ctrl_c_saves_latest_and_resume_continues(tmp_path, run_cli, tiny_args, 
     assert [int(row["iteration"]) for row in read_metrics(run)][-1] == iteration + 1
 
 
-# ---------------------------------------------------------------------------- pre-emption
-@pytest.mark.usefixtures("torch_one_thread")
 @pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGUSR1, signal.SIGUSR2],
                          ids=["SIGTERM", "SIGUSR1", "SIGUSR2"])
-def test_a_stop_signal_saves_latest_and_the_same_command_resumes(tmp_path, run_cli, tiny_args, stop_signal):
+def test_a_stop_signal_saves_latest_and_the_same_command_resumes(stopped_runs, stop_signal):
     """What Slurm and submitit send before a pre-emption or a time limit: a checkpoint newer than the signal, a
     distinct exit code within 30 s, one line saying how to resume; the same command run again (a requeued job)
     resumes the run and finishes it."""
-    run = tmp_path / "run"
-    iterations = 12
-    # No periodic `latest` (checkpoint_interval=1000): the checkpoint must come from the signal.
-    arguments = (*tiny_args({"ppo.total_frames": 512 * iterations, "checkpoint_interval": 1000}),
-                 f"hydra.run.dir={run}")
+    stopped = stopped_runs[stop_signal.name]
+    run = stopped.run
     latest = run / "checkpoints" / "latest.pt"
-    with (tmp_path / "stdout").open("w") as out, (tmp_path / "stderr").open("w") as err:
-        process = subprocess.Popen(run_cli.command("train", *arguments), cwd=run_cli.cwd, env=run_cli.environment(),
-                                   stdout=out, stderr=err)
-        try:
-            deadline = time.monotonic() + 120
-            while len(read_metrics(run)) < 2:  # iteration 1 complete
-                assert process.poll() is None, (tmp_path / "stderr").read_text()[-3000:]
-                assert time.monotonic() < deadline, "two iterations did not finish within 120 s"
-                time.sleep(0.02)
-            assert not latest.exists()
-            signalled = time.time()
-            process.send_signal(stop_signal)
-            code = process.wait(timeout=30)
-        finally:
-            if process.poll() is None:
-                process.kill()
-                process.wait()
-    stderr = (tmp_path / "stderr").read_text()
-    assert code == PREEMPTED_EXIT_CODE, stderr[-3000:]
-    assert latest.stat().st_mtime >= signalled
+    assert stopped.code == PREEMPTED_EXIT_CODE, stopped.stderr[-3000:]
+    # What the stopped run left (a copy made before the command ran again):
+    assert (stopped.checkpoints / "latest.pt").stat().st_mtime >= stopped.signalled
     line = f"agrl.train: stopped by {stop_signal.name}: saved the last completed iteration to {latest}; " \
            f"resume with: python -m agrl.train resume={run}"
-    assert line in stderr.splitlines(), stderr[-3000:]
-    stopped_at = load_checkpoint(latest, required=TRAINING_STATE)["counters"]["iteration"]
-    assert 1 <= stopped_at < iterations
-    marker = run / "checkpoints" / PREEMPTED_MARKER
-    assert json.loads(marker.read_text()) == {"signal": stop_signal.name, "iteration": stopped_at}
+    assert line in stopped.stderr.splitlines(), stopped.stderr[-3000:]
+    stopped_at = load_checkpoint(stopped.checkpoints / "latest.pt", required=TRAINING_STATE)["counters"]["iteration"]
+    assert 1 <= stopped_at < PREEMPTED_ITERATIONS
+    assert json.loads((stopped.checkpoints / PREEMPTED_MARKER).read_text()) == {"signal": stop_signal.name,
+                                                                                  "iteration": stopped_at}
 
-    again = run_cli("train", *arguments)
+    again = stopped.again
+    marker = run / "checkpoints" / PREEMPTED_MARKER
     assert again.returncode == 0, again.stderr[-3000:]
     assert f"{run} was pre-empted: resuming it from its last checkpoint" in again.stdout
     assert f"resumed from {latest} after iteration {stopped_at}" in again.stdout
-    assert json.loads(again.stdout.splitlines()[-1])["iterations"] == iterations
+    assert json.loads(again.stdout.splitlines()[-1])["iterations"] == PREEMPTED_ITERATIONS
     assert not marker.exists()
 
 
@@ -241,7 +287,7 @@ ONE_LINE_ERRORS = {
     "task-foo": (("task=foo",), ("task=foo is not allowed: one of curved, fixed, irregular, uniform",)),
     "experiment-foo": (("+experiment=fsat",), ("+experiment=fsat is not allowed: one of fast, switch_finetune",)),
     "seed-type": (("seed=abc",), ("seed=abc is not allowed", "could not be converted to Integer")),
-    "negative-speed": (("task=uniform", "speed=-5"), ("speed=-5.0 is not allowed", "> 0 m/s")),
+    "negative-speed": (("task=uniform", "speed=-5"), ("speed=-5.0 is not allowed", "in (0, 1000] m/s")),
     "zero-envs": (("ppo.num_envs=0",), ("ppo.num_envs=0 is not allowed",)),
     "unused-speed": (("speed=50",), ("speed=50.0 is not allowed: task=fixed has no destination speed",
                                      "only task=uniform or curved")),
@@ -262,10 +308,11 @@ ONE_LINE_ERRORS = {
 }
 
 
-#: Refused command lines that also run as real processes, at once: a mistyped key, a sweep, and a file the checks
-#: load. The others run the same checks in process (``run_cli.checks``, agrl.cli.run_checked as the module's
-#: ``__main__`` calls it): a real process adds only its start-up, the same for every case.
-REAL_PROCESS_CASES = ("sped", "sweep-value", "baseline-random-bytes")
+#: Refused command lines that run as real processes, at once: a mistyped key, a sweep, a file the checks load, and
+#: the corrupt checkpoint of a resume (read once Hydra runs). The others are refused by agrl.cli's checks before
+#: Hydra runs, and run them in process (``run_cli.checks``, agrl.cli.run_checked as the module's ``__main__`` calls
+#: it): a real process would add only its start-up, the same for every case.
+REAL_PROCESS_CASES = ("sped", "sweep-value", "baseline-random-bytes", "resume-random-bytes")
 
 
 @pytest.fixture(scope="module")
@@ -283,10 +330,6 @@ def bad_invocations(run_cli, tmp_path_factory):
     in_process = {case: run_cli.checks(*job) for case, job in jobs.items() if case not in REAL_PROCESS_CASES}
     processes = run_cli.batch({case: jobs[case] for case in REAL_PROCESS_CASES})
     return {"bad_file": bad, "directory": directory, **in_process, **processes}
-
-
-def test_some_refused_command_lines_ran_as_real_processes(bad_invocations):
-    assert all(bad_invocations[case].args[:2] == run_cli_command_start() for case in REAL_PROCESS_CASES)
 
 
 @pytest.mark.parametrize("case", sorted(ONE_LINE_ERRORS))
@@ -323,7 +366,8 @@ def test_resume_from_corrupt_checkpoint_exits_2_naming_the_file(bad_invocations)
 # ---------------------------------------------------------------------------- bad inputs of runs that start
 @pytest.fixture(scope="module")
 def bad_runs(run_cli, tiny_run, tiny_args, tmp_path_factory):
-    """Invocations that get past the config's schema and fail when the run starts, run at once."""
+    """Invocations that get past the config's schema and fail when the run starts, and refusals of a method's
+    and a resume's settings."""
     import shutil
 
     import torch
@@ -340,17 +384,21 @@ def bad_runs(run_cli, tiny_run, tiny_args, tmp_path_factory):
     # A copy of the shared tiny run to resume (the shared one stays read-only).
     resumable = directory / "resumable"
     shutil.copytree(tiny_run.run_dir, resumable)
-    jobs = {
+    # Refused when the run starts: real processes, at once.
+    started = run_cli.batch({
         "diverges": ("train", *tiny_args(), "method=pretrained", f"method.baseline={nan_baseline}",
                      f"hydra.run.dir={directory / 'diverges'}"),
-        "reuse-without-baseline": ("train", *tiny_args(), "method=reuse", "method.baseline=null",
-                                   f"hydra.run.dir={directory / 'no_baseline'}"),
         "stride-over-budget": ("train", *tiny_args(), "method=reuse", "method.candidate_stride=31",
                                f"hydra.run.dir={directory / 'stride'}"),
-        "resume-other-num-envs": ("train", f"resume={resumable}", "ppo.num_envs=64",
-                                  f"hydra.run.dir={directory / 'resume_hydra'}"),
+    })
+    # Refused before Hydra runs: agrl.cli's checks, in process (as most of ONE_LINE_ERRORS).
+    refused = {
+        "reuse-without-baseline": run_cli.checks("train", *tiny_args(), "method=reuse", "method.baseline=null",
+                                                 f"hydra.run.dir={directory / 'no_baseline'}"),
+        "resume-other-num-envs": run_cli.checks("train", f"resume={resumable}", "ppo.num_envs=64",
+                                                f"hydra.run.dir={directory / 'resume_hydra'}"),
     }
-    return {"directory": directory, "resumable": resumable, **run_cli.batch(jobs)}
+    return {"directory": directory, "resumable": resumable, **started, **refused}
 
 
 def single_error_line(result, code: int) -> str:

@@ -24,6 +24,12 @@ def controls(paper_parameters):
     return paper_parameters.maneuvers.controls()
 
 
+@pytest.fixture(scope="module")
+def compiled_simulator(simulation, controls):
+    """One compiled simulator for this module's comparisons: each compilation of the step takes seconds."""
+    return DecisionSimulator(simulation, controls, compile=True)
+
+
 def random_batch(count: int, seed: int, limits: AircraftLimits, near: int = 4):
     generator = torch.Generator().manual_seed(seed)
     u = lambda *shape: torch.rand(*shape, generator=generator)  # noqa: E731
@@ -75,7 +81,7 @@ def test_substeps_from_decision_period(simulation):
         _ = dataclasses.replace(simulation, integration_step=0.07, decision_period=3.0).substeps
 
 
-def test_compiled_matches_eager(simulation, controls):
+def test_compiled_matches_eager(simulation, controls, compiled_simulator):
     count = 16
     aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=0, limits=simulation.limits)
     actions = [torch.randint(0, 7, (count,), generator=generator) for _ in range(3)]
@@ -83,7 +89,6 @@ def test_compiled_matches_eager(simulation, controls):
     eager = run(
         DecisionSimulator(params, controls, compile=False), aircraft, destination, speed, turn_rate, actions
     )
-    compiled_simulator = DecisionSimulator(params, controls, compile=True)
     compiled = run(compiled_simulator, aircraft, destination, speed, turn_rate, actions)
     assert compiled_simulator.compiled, "torch.compile fell back to eager"
     assert torch.equal(compiled[2], eager[2])  # outcomes
@@ -145,12 +150,11 @@ def test_headings_are_wrapped(simulation, controls):
         assert float(heading) < 0  # crossed +pi and came back as a negative angle
 
 
-def test_compiled_matches_eager_on_shrinking_batches(simulation, controls):
+def test_compiled_matches_eager_on_shrinking_batches(simulation, controls, compiled_simulator):
     """One compiled simulator fed batches of decreasing size, as the reuse replay does when it drops finished
     episodes (new shapes recompile or go dynamic). Tolerances as above: float32 sums of 150 steps in another
     order differ by at most 1e-2 m in position and 1e-4 in speed (m/s) and angles (rad); outcomes exactly."""
     params = simulation
-    compiled_simulator = DecisionSimulator(params, controls, compile=True)
     eager_simulator = DecisionSimulator(params, controls, compile=False)
     for count in (64, 37, 5, 1):
         aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=count, limits=simulation.limits,

@@ -202,8 +202,9 @@ def test_crafted_checkpoint_is_refused_without_running_its_code(tmp_path, run_cl
         # Path.touch pickles as getattr(Path, "touch"): the first object outside the allow-list is named.
         assert message == (f"{path}: refused to load: it holds a pickled getattr, and agrl loads only tensors "
                            "and plain data (a file from an untrusted source, or not an agrl checkpoint)")
-    # The same file given to the CLI as a baseline: exit 2, one line, and the payload never ran.
-    result = run_cli("train", "method=pretrained", f"method.baseline={path}", f"hydra.run.dir={tmp_path / 'h'}")
+    # The same file given to the CLI as a baseline: exit 2, one line, and the payload never ran (agrl.cli's checks
+    # before Hydra runs, in process: real processes refusing a baseline file are in tests/test_train_cli.py).
+    result = run_cli.checks("train", "method=pretrained", f"method.baseline={path}", f"hydra.run.dir={tmp_path / 'h'}")
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [f"agrl.train: error: method.baseline: {message}"]
     assert not marker.exists()

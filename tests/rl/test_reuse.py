@@ -962,12 +962,26 @@ def scalar_values(run_dir: Path) -> dict[str, list[float]]:
     return values
 
 
-def test_reuse_training_runs_end_to_end(run_cli, tiny_args, tmp_path, steady_baseline):
-    run_dir = tmp_path / "reuse"
+@pytest.fixture(scope="module")
+def reuse_runs(run_cli, tiny_args, steady_baseline, tmp_path_factory) -> dict[str, tuple[Path, object]]:
+    """Two tiny ``python -m agrl.train method=reuse`` runs at once: {name: (run directory, CompletedProcess)}.
+    ``relative``: from the steady baseline; ``absolute``: Z and B both read equation 4 (agent.observation=absolute)."""
+    folder = tmp_path_factory.mktemp("reuse_runs")
+    absolute_baseline = steady_checkpoint(folder / "steady_absolute.pt", observation="absolute")
     args = tiny_args({"ppo.total_frames": 512, "eval.interval": 1, "eval.episodes": 8})
-    baseline = f"method.baseline={steady_baseline}"
-    result = run_cli("train", "task=uniform", "speed=50", "method=reuse", baseline, "method.max_candidates=4",
-                     *args, *SCENARIO_START, f"hydra.run.dir={run_dir}")
+    runs = {"relative": folder / "reuse", "absolute": folder / "reuse_absolute"}
+    results = run_cli.batch({
+        "relative": ("train", "task=uniform", "speed=50", "method=reuse", f"method.baseline={steady_baseline}",
+                     "method.max_candidates=4", *args, *SCENARIO_START, f"hydra.run.dir={runs['relative']}"),
+        "absolute": ("train", "task=uniform", "speed=50", "method=reuse", f"method.baseline={absolute_baseline}",
+                     "agent.observation=absolute", "method.max_candidates=4", *args, *SCENARIO_START,
+                     f"hydra.run.dir={runs['absolute']}"),
+    })
+    return {name: (run_dir, results[name]) for name, run_dir in runs.items()}
+
+
+def test_reuse_training_runs_end_to_end(reuse_runs):
+    run_dir, result = reuse_runs["relative"]
     assert result.returncode == 0, result.stderr[-3000:]
     values = scalar_values(run_dir)
     assert {"train/e", "train/reuse_fraction"} <= set(values), sorted(values)
@@ -980,44 +994,45 @@ def test_reuse_training_runs_end_to_end(run_cli, tiny_args, tmp_path, steady_bas
     assert summary["method"] == "reuse" and summary["task"] == "uniform"
 
 
-def test_reuse_with_the_papers_observation_runs_end_to_end(run_cli, tiny_args, tmp_path):
+def test_reuse_with_the_papers_observation_runs_end_to_end(reuse_runs, compose_evaluate, tmp_path):
     """Z and B both read equation 4 as it stands (agent.observation=absolute); B is queried in the predicted
-    destination's frame, and the trained agent evaluates on its own input."""
-    baseline = steady_checkpoint(tmp_path / "steady_absolute.pt", observation="absolute")
-    run_dir = tmp_path / "reuse_absolute"
-    args = tiny_args({"ppo.total_frames": 512, "eval.interval": 1, "eval.episodes": 8})
-    result = run_cli("train", "task=uniform", "speed=50", "method=reuse", f"method.baseline={baseline}",
-                     "agent.observation=absolute", "method.max_candidates=4", *args, *SCENARIO_START,
-                     f"hydra.run.dir={run_dir}")
+    destination's frame, and the trained agent evaluates on its own input (agrl.evaluate's evaluation, in
+    process: its command line is tested in tests/test_evaluate_cli.py)."""
+    from agrl.evaluate import evaluate
+
+    run_dir, result = reuse_runs["absolute"]
     assert result.returncode == 0, result.stderr[-3000:]
     assert 0 < scalar_values(run_dir)["train/reuse_fraction"][-1] <= 1
-    evaluation = run_cli("evaluate", f"checkpoint={run_dir}", "episodes=8", "trajectories=0",
-                         f"output_dir={tmp_path / 'eval'}", f"hydra.run.dir={tmp_path / 'eval'}")
-    assert evaluation.returncode == 0, evaluation.stderr[-3000:]
-    assert json.loads(evaluation.stdout.strip().splitlines()[-1])["episodes"] == 8
+    evaluation = evaluate(compose_evaluate(f"checkpoint={run_dir}", "episodes=8", "trajectories=0",
+                                           f"output_dir={tmp_path / 'eval'}"))
+    assert evaluation["episodes"] == 8
+    assert json.loads((tmp_path / "eval" / "eval.json").read_text())["episodes"] == 8
 
 
 def test_pretrained_from_a_baseline_of_another_observation_is_a_one_line_error(run_cli, tiny_args, tmp_path,
                                                                                steady_baseline):
-    result = run_cli("train", "method=pretrained", f"method.baseline={steady_baseline}", "agent.observation=absolute",
-                     "agent.actor_hidden=[16,16]", "agent.critic_hidden=[16,16]", *tiny_args(),
-                     f"hydra.run.dir={tmp_path / 'pretrained'}")
+    # Refused by agrl.cli's checks before Hydra runs: in process (real processes: tests/test_train_cli.py).
+    result = run_cli.checks("train", "method=pretrained", f"method.baseline={steady_baseline}",
+                            "agent.observation=absolute", "agent.actor_hidden=[16,16]", "agent.critic_hidden=[16,16]",
+                            *tiny_args(), f"hydra.run.dir={tmp_path / 'pretrained'}")
     assert result.returncode == 2, result.stderr[-3000:]
     lines = [line for line in result.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
     assert lines[0].startswith("agrl.train: error:") and str(steady_baseline) in lines[0]
     assert "agent.observation=absolute" in lines[0] and "observation=relative" in lines[0]
+    assert not (tmp_path / "pretrained").exists()
 
 
 def test_pretrained_with_a_different_actor_is_a_one_line_error(run_cli, tiny_args, tiny_run, tmp_path):
     baseline = tiny_run.run_dir / "checkpoints" / "latest.pt"  # fixed task, the default [128, 128] actor
-    result = run_cli("train", "method=pretrained", f"method.baseline={baseline}",
-                     "agent.actor_hidden=[32,32]", *tiny_args(), f"hydra.run.dir={tmp_path / 'pretrained'}")
+    result = run_cli.checks("train", "method=pretrained", f"method.baseline={baseline}",
+                            "agent.actor_hidden=[32,32]", *tiny_args(), f"hydra.run.dir={tmp_path / 'pretrained'}")
     assert result.returncode == 2, result.stderr[-3000:]
     lines = [line for line in result.stderr.splitlines() if line.strip()]
     assert len(lines) == 1, result.stderr
     assert lines[0].startswith("agrl.train: error:") and str(baseline) in lines[0] and "actor" in lines[0]
     assert "Traceback" not in result.stderr
+    assert not (tmp_path / "pretrained").exists()
 
 
 @pytest.mark.parametrize("task", [
