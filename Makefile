@@ -58,7 +58,7 @@ wheel-check:
 
 # The slow suite: four real training runs with budgets in decisions (docs/training.md, "The slow suite").
 test-slow: install
-	$(PY) -m pytest -m slow
+	$(PY) -m pytest -m slow -n 0
 
 # The benchmarks beside the package (benchmarks/, not in the wheel), run from the repository root: one JSON object
 # per line (docs/benchmarks.md). ARGS: extra options for benchmarks.bench (e.g. ARGS="--threads 1").
