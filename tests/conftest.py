@@ -139,14 +139,16 @@ def _run_cli(module: str, *args: str, cwd: Path, timeout: float = 300) -> subpro
                           text=True, timeout=timeout)
 
 
-def _run_cli_batch(jobs: dict[str, tuple[str, ...]], cwd: Path, timeout: float = 300):
-    """Run several ``(module, *args)`` jobs at once (each is mostly interpreter start-up and imports)."""
+def _run_at_once(commands: dict[str, list[str]], cwd: Path | dict[str, Path], env: dict[str, str] | None = None,
+                 timeout: float = 300) -> dict[str, subprocess.CompletedProcess]:
+    """Run several commands at once (each is mostly interpreter start-up and imports): {name: its result}.
+    ``cwd`` is one folder for all, or one per name."""
     started = {}
-    for name, (module, *args) in jobs.items():
-        command = _cli_command(module, *args)
+    for name, command in commands.items():
+        folder = cwd[name] if isinstance(cwd, dict) else cwd
         out, err = tempfile.TemporaryFile("w+"), tempfile.TemporaryFile("w+")
-        started[name] = (command, subprocess.Popen(command, cwd=cwd, env=_cli_environment(), stdout=out,
-                                                   stderr=err, text=True), out, err)
+        started[name] = (command, subprocess.Popen(command, cwd=folder, env=env, stdout=out, stderr=err, text=True),
+                         out, err)
     results = {}
     try:
         for name, (command, process, out, err) in started.items():
@@ -162,6 +164,19 @@ def _run_cli_batch(jobs: dict[str, tuple[str, ...]], cwd: Path, timeout: float =
             out.close()
             err.close()
     return results
+
+
+def _run_cli_batch(jobs: dict[str, tuple[str, ...]], cwd: Path, timeout: float = 300):
+    """Run several ``(module, *args)`` jobs of ``python -m agrl.<module>`` at once."""
+    commands = {name: _cli_command(module, *args) for name, (module, *args) in jobs.items()}
+    return _run_at_once(commands, cwd, _cli_environment(), timeout)
+
+
+@pytest.fixture(scope="session")
+def run_at_once():
+    """``run_at_once({name: command}, cwd, env=None, timeout=300)`` -> {name: CompletedProcess}: the commands run
+    side by side (for the benchmarks, which are not ``agrl`` entry points)."""
+    return _run_at_once
 
 
 #: {module: its root config}, as each ``__main__`` passes them to :func:`agrl.cli.run_checked`.

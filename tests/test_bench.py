@@ -31,28 +31,13 @@ BENCHMARK_RUNS = {
 
 
 @pytest.fixture(scope="module")
-def benchmark_runs() -> dict[str, subprocess.CompletedProcess]:
+def benchmark_runs(run_at_once) -> dict[str, subprocess.CompletedProcess]:
     """Each of :data:`BENCHMARK_RUNS` (those that need stable-baselines3 only with it), all at once."""
     import importlib.util
 
     names = [name for name in BENCHMARK_RUNS
              if name == "bench" or importlib.util.find_spec("stable_baselines3") is not None]
-    started = {}
-    for name in names:
-        command = [sys.executable, "-m", *BENCHMARK_RUNS[name]]
-        started[name] = (command, subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                                   text=True))
-    results = {}
-    try:
-        for name, (command, process) in started.items():
-            stdout, stderr = process.communicate(timeout=600)
-            results[name] = subprocess.CompletedProcess(command, process.returncode, stdout, stderr)
-    finally:
-        for _, process in started.values():
-            if process.poll() is None:
-                process.kill()
-                process.wait()
-    return results
+    return run_at_once({name: [sys.executable, "-m", *BENCHMARK_RUNS[name]] for name in names}, REPO, timeout=600)
 
 
 def test_quick_run_prints_json_lines(benchmark_runs):

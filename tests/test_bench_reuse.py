@@ -22,26 +22,14 @@ QUICK_RUNS = {"candidates": ("--quick", "--candidates", "2", "4"),
 
 
 @pytest.fixture(scope="module")
-def quick_runs(tmp_path_factory) -> dict[str, subprocess.CompletedProcess]:
+def quick_runs(tmp_path_factory, run_at_once) -> dict[str, subprocess.CompletedProcess]:
     """Each of :data:`QUICK_RUNS`, all at once, each in its own temporary folder."""
     # Small tensors: one thread (see conftest).
     environment = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": str(REPO)}
-    started = {}
-    for name, arguments in QUICK_RUNS.items():
-        command = [sys.executable, "-m", "benchmarks.bench_reuse", *arguments]
-        started[name] = (command, subprocess.Popen(command, cwd=tmp_path_factory.mktemp(name), env=environment,
-                                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
-    results = {}
-    try:
-        for name, (command, process) in started.items():
-            stdout, stderr = process.communicate(timeout=600)
-            results[name] = subprocess.CompletedProcess(command, process.returncode, stdout, stderr)
-    finally:
-        for _, process in started.values():
-            if process.poll() is None:
-                process.kill()
-                process.wait()
-    return results
+    commands = {name: [sys.executable, "-m", "benchmarks.bench_reuse", *arguments]
+                for name, arguments in QUICK_RUNS.items()}
+    folders = {name: tmp_path_factory.mktemp(name) for name in QUICK_RUNS}
+    return run_at_once(commands, folders, environment, timeout=600)
 
 
 def test_quick_run_times_each_candidate_count(quick_runs):
