@@ -37,14 +37,15 @@ def one_line(value: Any, limit: int = 200) -> str:
     return text if len(text) <= limit else f"{text[:limit]}..."
 
 
-def _require(condition: bool, key: str, value: Any, allowed: str) -> None:
+def require(condition: bool, key: str, value: Any, allowed: str) -> None:
+    """Raise :class:`ConfigError` ``<key>=<value> is not allowed: <allowed>`` unless ``condition``."""
     if not condition:
         raise ConfigError(f"{key}={value!r} is not allowed: {allowed}")
 
 
 def _require_device(key: str, device: str) -> None:
     """``cpu``, ``cuda`` or ``cuda:N``, and only a CUDA device this machine has."""
-    _require(device == "cpu" or re.fullmatch(r"cuda(:\d+)?", device) is not None, key, device,
+    require(device == "cpu" or re.fullmatch(r"cuda(:\d+)?", device) is not None, key, device,
              "cpu, cuda or cuda:N")
     if device.startswith("cuda"):
         import torch
@@ -52,12 +53,12 @@ def _require_device(key: str, device: str) -> None:
         count = torch.cuda.device_count() if torch.cuda.is_available() else 0
         index = int(device.partition(":")[2] or 0)
         available = ", ".join(["cpu"] + [f"cuda:{n}" for n in range(count)])
-        _require(index < count, key, device, f"this machine has {available} (torch {torch.__version__})")
+        require(index < count, key, device, f"this machine has {available} (torch {torch.__version__})")
 
 
 def _range_pair(key: str, pair: list[float], low: float, high: float, unit: str) -> None:
-    _require(len(pair) == 2 and pair[0] <= pair[1], key, pair, f"a [low, high] pair with low <= high ({unit})")
-    _require(low <= pair[0] and pair[1] <= high, key, pair, f"within [{low}, {high}] {unit}")
+    require(len(pair) == 2 and pair[0] <= pair[1], key, pair, f"a [low, high] pair with low <= high ({unit})")
+    require(low <= pair[0] and pair[1] <= high, key, pair, f"within [{low}, {high}] {unit}")
 
 
 def feeds(target: str, convert: Callable[[Any], Any] | None = None, default: Any = MISSING) -> Any:
@@ -87,26 +88,26 @@ class TaskConfig:
 
     def __post_init__(self) -> None:
         kinds = [kind.value for kind in MotionKind]
-        _require(self.name in kinds, "task", self.name, f"one of {', '.join(kinds)}")
+        require(self.name in kinds, "task", self.name, f"one of {', '.join(kinds)}")
         needs = {"uniform": ("speed",), "curved": ("speed", "radius", "turn_direction"),
                  "irregular": ("change_probability", "speed_range", "max_turn_rate_deg")}.get(self.name, ())
         for key in needs:
-            _require(getattr(self, key) is not None, f"task.{key}", None, f"task={self.name} needs a value")
+            require(getattr(self, key) is not None, f"task.{key}", None, f"task={self.name} needs a value")
         if self.name in ("uniform", "curved"):
-            _require(0 < self.speed <= MAX_DESTINATION_SPEED, "speed", self.speed,
+            require(0 < self.speed <= MAX_DESTINATION_SPEED, "speed", self.speed,
                      f"task={self.name} needs a destination speed in (0, {MAX_DESTINATION_SPEED:g}] m/s")
         if self.name == "curved":
-            _require(0 < self.radius <= MAX_TURNING_RADIUS, "radius", self.radius,
+            require(0 < self.radius <= MAX_TURNING_RADIUS, "radius", self.radius,
                      f"task=curved needs a turning radius in (0, {MAX_TURNING_RADIUS:g}] m")
         if self.turn_direction is not None:
-            _require(self.turn_direction in (-1, 1), "task.turn_direction", self.turn_direction, "-1 or 1")
+            require(self.turn_direction in (-1, 1), "task.turn_direction", self.turn_direction, "-1 or 1")
         if self.change_probability is not None:
-            _require(0 <= self.change_probability <= 1, "task.change_probability", self.change_probability,
+            require(0 <= self.change_probability <= 1, "task.change_probability", self.change_probability,
                      "[0, 1]")
         if self.speed_range is not None:
             _range_pair("task.speed_range", self.speed_range, 0.0, MAX_DESTINATION_SPEED, "m/s")
         if self.max_turn_rate_deg is not None:
-            _require(self.max_turn_rate_deg >= 0, "task.max_turn_rate_deg", self.max_turn_rate_deg, ">= 0 deg/s")
+            require(self.max_turn_rate_deg >= 0, "task.max_turn_rate_deg", self.max_turn_rate_deg, ">= 0 deg/s")
 
 
 #: The destination parameters each task takes (their defaults live in conf/task/*.yaml, nowhere else).
@@ -129,7 +130,7 @@ def _require_shorthands_used(task: TaskConfig | None, speed: float | None, radiu
             raise ConfigError(f"{key}={value!r} is not allowed without task=...: the checkpoint's own task is "
                               f"evaluated; give task={' or '.join(users)} with it")
         if value is not None:
-            _require(task.name in users, key, value,
+            require(task.name in users, key, value,
                      f"task={task.name} has no destination {key} (only task={' or '.join(users)})")
 
 
@@ -160,12 +161,12 @@ class RewardConfig:
     switch_cost: float = feeds("reward.switch_cost")  # not in the paper (conf/reward/switch.yaml)
 
     def __post_init__(self) -> None:
-        _require(self.c1 > 0, "reward.c1", self.c1, "> 0 (success must pay, equation 6)")
-        _require(self.c2 < self.c3 < 0, "reward.c2/c3", (self.c2, self.c3), "c2 < c3 < 0 (equation 6)")
-        _require(self.c4 < self.c5 <= 0, "reward.c4/c5", (self.c4, self.c5), "c4 < c5 <= 0 (equation 9)")
-        _require(min(self.c6, self.c7, self.c8) >= 0, "reward.c6..c8", (self.c6, self.c7, self.c8), ">= 0")
-        _require(0 < self.gamma <= 1, "reward.gamma", self.gamma, "(0, 1]")
-        _require(0 <= self.switch_cost < self.c1, "reward.switch_cost", self.switch_cost,
+        require(self.c1 > 0, "reward.c1", self.c1, "> 0 (success must pay, equation 6)")
+        require(self.c2 < self.c3 < 0, "reward.c2/c3", (self.c2, self.c3), "c2 < c3 < 0 (equation 6)")
+        require(self.c4 < self.c5 <= 0, "reward.c4/c5", (self.c4, self.c5), "c4 < c5 <= 0 (equation 9)")
+        require(min(self.c6, self.c7, self.c8) >= 0, "reward.c6..c8", (self.c6, self.c7, self.c8), ">= 0")
+        require(0 < self.gamma <= 1, "reward.gamma", self.gamma, "(0, 1]")
+        require(0 <= self.switch_cost < self.c1, "reward.switch_cost", self.switch_cost,
                  "[0, c1) reward units per instruction")
 
 
@@ -179,14 +180,14 @@ class ManeuverConfig:
     deceleration: float = feeds("maneuvers.deceleration")
 
     def __post_init__(self) -> None:
-        _require(self.turn_load_factor > 1, "simulation.maneuvers.turn_load_factor", self.turn_load_factor,
+        require(self.turn_load_factor > 1, "simulation.maneuvers.turn_load_factor", self.turn_load_factor,
                  "> 1 g (a level turn needs n_z > 1)")
-        _require(self.pull_up_load_factor > 1, "simulation.maneuvers.pull_up_load_factor",
+        require(self.pull_up_load_factor > 1, "simulation.maneuvers.pull_up_load_factor",
                  self.pull_up_load_factor, "> 1 g")
-        _require(self.push_over_load_factor < 1, "simulation.maneuvers.push_over_load_factor",
+        require(self.push_over_load_factor < 1, "simulation.maneuvers.push_over_load_factor",
                  self.push_over_load_factor, "< 1 g")
-        _require(self.acceleration > 0, "simulation.maneuvers.acceleration", self.acceleration, "> 0 g")
-        _require(self.deceleration > 0, "simulation.maneuvers.deceleration", self.deceleration, "> 0 g")
+        require(self.acceleration > 0, "simulation.maneuvers.acceleration", self.acceleration, "> 0 g")
+        require(self.deceleration > 0, "simulation.maneuvers.deceleration", self.deceleration, "> 0 g")
 
 
 @dataclass
@@ -215,22 +216,22 @@ class SimulationConfig:
     compile: bool = feeds("compile")
 
     def __post_init__(self) -> None:
-        _require(self.integration_step > 0, "simulation.integration_step", self.integration_step, "> 0 s")
+        require(self.integration_step > 0, "simulation.integration_step", self.integration_step, "> 0 s")
         steps = self.decision_period / self.integration_step
-        _require(self.decision_period > 0 and abs(steps - round(steps)) < 1e-6, "simulation.decision_period",
+        require(self.decision_period > 0 and abs(steps - round(steps)) < 1e-6, "simulation.decision_period",
                  self.decision_period, f"> 0 s and a whole multiple of integration_step={self.integration_step} s")
-        _require(self.max_decisions >= 1, "simulation.max_decisions", self.max_decisions, ">= 1")
+        require(self.max_decisions >= 1, "simulation.max_decisions", self.max_decisions, ">= 1")
         for key in ("distance_tolerance", "altitude_tolerance", "heading_tolerance_deg"):
-            _require(getattr(self, key) > 0, f"simulation.{key}", getattr(self, key), "> 0")
-        _require(0 < self.min_speed < self.max_speed, "simulation.min_speed/max_speed",
+            require(getattr(self, key) > 0, f"simulation.{key}", getattr(self, key), "> 0")
+        require(0 < self.min_speed < self.max_speed, "simulation.min_speed/max_speed",
                  (self.min_speed, self.max_speed), "0 < min_speed < max_speed (m/s)")
-        _require(0 < self.max_flight_path_angle_deg < 90, "simulation.max_flight_path_angle_deg",
+        require(0 < self.max_flight_path_angle_deg < 90, "simulation.max_flight_path_angle_deg",
                  self.max_flight_path_angle_deg, "(0, 90) deg")
         space = self.airspace
-        _require(set(space) == {"x_min", "x_max", "y_min", "y_max", "z_min", "z_max"}, "simulation.airspace",
+        require(set(space) == {"x_min", "x_max", "y_min", "y_max", "z_min", "z_max"}, "simulation.airspace",
                  dict(space), "keys x_min, x_max, y_min, y_max, z_min, z_max")
         for axis in "xyz":
-            _require(space[f"{axis}_min"] < space[f"{axis}_max"], f"simulation.airspace.{axis}_min/max",
+            require(space[f"{axis}_min"] < space[f"{axis}_max"], f"simulation.airspace.{axis}_min/max",
                      (space[f"{axis}_min"], space[f"{axis}_max"]), "min < max (m)")
         start = self.initial_state
         _range_pair("simulation.initial_state.x_range", start.x_range, space["x_min"], space["x_max"], "m")
@@ -238,7 +239,7 @@ class SimulationConfig:
         _range_pair("simulation.initial_state.z_range", start.z_range, space["z_min"], space["z_max"], "m")
         _range_pair("simulation.initial_state.speed_range", start.speed_range, self.min_speed, self.max_speed,
                     "m/s")
-        _require(start.min_horizontal_distance > self.distance_tolerance,
+        require(start.min_horizontal_distance > self.distance_tolerance,
                  "simulation.initial_state.min_horizontal_distance", start.min_horizontal_distance,
                  f"> distance_tolerance={self.distance_tolerance} m (no episode may start solved, equation 2)")
 
@@ -253,13 +254,13 @@ class AgentConfig:
     observation: str = MISSING  # relative or absolute; see saved_agent_config for checkpoints without it
 
     def __post_init__(self) -> None:
-        _require(self.observation in ("relative", "absolute"), "agent.observation", self.observation,
+        require(self.observation in ("relative", "absolute"), "agent.observation", self.observation,
                  "relative or absolute")
-        _require(all(width > 0 for width in self.actor_hidden), "agent.actor_hidden", self.actor_hidden,
+        require(all(width > 0 for width in self.actor_hidden), "agent.actor_hidden", self.actor_hidden,
                  "positive layer widths")
-        _require(all(width > 0 for width in self.critic_hidden), "agent.critic_hidden", self.critic_hidden,
+        require(all(width > 0 for width in self.critic_hidden), "agent.critic_hidden", self.critic_hidden,
                  "positive layer widths")
-        _require(self.activation in ("tanh", "relu", "elu"), "agent.activation", self.activation,
+        require(self.activation in ("tanh", "relu", "elu"), "agent.activation", self.activation,
                  "one of tanh, relu, elu")
 
 
@@ -284,59 +285,82 @@ class PPOConfig:
 
     def __post_init__(self) -> None:
         for key in ("num_envs", "steps_per_env", "total_frames", "epochs", "minibatch_size", "collector_workers"):
-            _require(getattr(self, key) >= 1, f"ppo.{key}", getattr(self, key), ">= 1")
-        _require(self.learning_rate > 0, "ppo.learning_rate", self.learning_rate, "> 0")
-        _require(0 <= self.gae_lambda <= 1, "ppo.gae_lambda", self.gae_lambda, "[0, 1]")
-        _require(self.clip_epsilon > 0, "ppo.clip_epsilon", self.clip_epsilon, "> 0")
-        _require(self.max_minutes >= 0, "ppo.max_minutes", self.max_minutes, ">= 0 (0 = no limit)")
-        _require(self.target_kl >= 0, "ppo.target_kl", self.target_kl, ">= 0 (0 = no limit)")
+            require(getattr(self, key) >= 1, f"ppo.{key}", getattr(self, key), ">= 1")
+        require(self.learning_rate > 0, "ppo.learning_rate", self.learning_rate, "> 0")
+        require(0 <= self.gae_lambda <= 1, "ppo.gae_lambda", self.gae_lambda, "[0, 1]")
+        require(self.clip_epsilon > 0, "ppo.clip_epsilon", self.clip_epsilon, "> 0")
+        require(self.max_minutes >= 0, "ppo.max_minutes", self.max_minutes, ">= 0 (0 = no limit)")
+        require(self.target_kl >= 0, "ppo.target_kl", self.target_kl, ">= 0 (0 = no limit)")
         frames = self.num_envs * self.steps_per_env
-        _require(self.minibatch_size <= frames, "ppo.minibatch_size", self.minibatch_size,
+        require(self.minibatch_size <= frames, "ppo.minibatch_size", self.minibatch_size,
                  f"<= num_envs * steps_per_env = {frames}")
-        _require(self.num_envs % self.collector_workers == 0, "ppo.collector_workers", self.collector_workers,
+        require(self.num_envs % self.collector_workers == 0, "ppo.collector_workers", self.collector_workers,
                  f"a divisor of ppo.num_envs={self.num_envs} (each worker steps num_envs / collector_workers envs)")
 
 
 @dataclass
 class MethodConfig:
-    """Fields only ``reuse`` uses (Algorithm 1's knobs) are None for the other methods."""
+    """What every training method's config has. A method's own knobs live in its own schema, a subclass beside
+    the method (``agrl/rl/methods/``); ``conf/method/<name>.yaml`` holds the values."""
 
-    name: str = MISSING  # scratch | pretrained | reuse
+    name: str = MISSING  # the registered method (register_method): scratch | pretrained | reuse | ...
     use_curriculum: bool = MISSING  # apply the root `curriculum` (off for methods that start from a baseline)
-    baseline: str | None = None  # pretrained, reuse: a checkpoint path, or a shipped agent's name (agrl.baselines)
-    initial_selection_factor: float | None = None  # e at the start (Algorithm 1)
-    selection_decay: float | None = None  # k, subtracted from e per relabelled episode
-    candidate_stride: int | None = None  # consider every n-th step as a termination step t_n
-    max_candidates: int | None = None  # at most this many t_n per episode (evenly spread)
-    keep: str | None = None  # which successful candidate to keep: earliest | latest
-    behaviour_log_prob: str | None = None  # relabelled rows' PPO behaviour log-prob: current (Z's) | baseline (B's)
-    start_from_baseline: bool | None = None  # Z starts from B's weights (reuse + pre-training)
-    relabel_unfinished: bool | None = None  # false: an episode running at a batch's end is searched once, when it ends
-    relabel_own_successes: bool | None = None  # false: episodes Z flew to a success keep Z's rows (not searched)
-    equal_update_cost: bool | None = None  # true: as many minibatches per update as a plain iteration's, over all rows
+    # The agent B a method starts from or reuses: a checkpoint, a run directory or a shipped agent's name
+    # (agrl.baselines). Scratch ignores it, so one sweep over methods can set it for all of them.
+    baseline: str | None = None
 
-    def __post_init__(self) -> None:
-        _require(self.name in ("scratch", "pretrained", "reuse"), "method", self.name,
-                 "one of scratch, pretrained, reuse")
-        _require(self.name == "scratch" or bool(self.baseline), "method.baseline", self.baseline,
-                 f"method={self.name} needs a baseline checkpoint (a path, or a shipped agent: "
-                 f"{shipped_agent_names()})")
-        _require(not self.start_from_baseline or self.name == "reuse", "method.start_from_baseline",
-                 self.start_from_baseline, "true only with method=reuse (pretrained always starts from it)")
-        if self.name != "reuse":
-            return
-        for key in ("initial_selection_factor", "selection_decay", "candidate_stride", "max_candidates", "keep",
-                    "behaviour_log_prob", "start_from_baseline", "relabel_unfinished", "relabel_own_successes",
-                    "equal_update_cost"):
-            _require(getattr(self, key) is not None, f"method.{key}", None, "method=reuse needs a value")
-        _require(0 <= self.initial_selection_factor <= 1, "method.initial_selection_factor",
-                 self.initial_selection_factor, "[0, 1]")
-        _require(self.selection_decay >= 0, "method.selection_decay", self.selection_decay, ">= 0")
-        _require(self.candidate_stride >= 1, "method.candidate_stride", self.candidate_stride, ">= 1")
-        _require(self.max_candidates >= 1, "method.max_candidates", self.max_candidates, ">= 1")
-        _require(self.keep in ("earliest", "latest"), "method.keep", self.keep, "earliest or latest")
-        _require(self.behaviour_log_prob in ("current", "baseline"), "method.behaviour_log_prob",
-                 self.behaviour_log_prob, "current or baseline")
+    def check(self, train: TrainConfig) -> None:
+        """Checks across sections (e.g. against ``train.ppo``); a method's schema adds its own."""
+
+
+def require_baseline(method: MethodConfig) -> None:
+    """For a method that starts from (or reuses) B: ``method.baseline`` must name one."""
+    require(bool(method.baseline), "method.baseline", method.baseline,
+             f"method={method.name} needs a baseline checkpoint (a path, or a shipped agent: "
+             f"{shipped_agent_names()})")
+
+
+#: The training methods by name: the method's class, or for the built-in ones ``"module:Class"``, imported on first
+#: use (as gymnasium's entry points): this layer names the trainer's modules without importing them.
+_METHODS: dict[str, type | str] = {
+    "scratch": "agrl.rl.methods.scratch:Scratch",
+    "pretrained": "agrl.rl.methods.pretrained:Pretrained",
+    "reuse": "agrl.rl.methods.reuse:PolicyReuse",
+}
+
+
+def register_method(name: str, method: type | str, defaults: dict[str, Any] | None = None) -> None:
+    """Make ``method=<name>`` train with ``method`` (a subclass of :class:`agrl.rl.methods.Method`, or
+    ``"module:Class"``). ``defaults`` (its config's values) also make ``name`` an option of the ``method`` group
+    without a YAML file in ``conf/method/``; ``docs/training.md``, "Adding a method"."""
+    _METHODS[name] = method
+    if defaults is not None:
+        ConfigStore.instance().store(group="method", name=name, node={"name": name, **defaults})
+
+
+def method_names() -> list[str]:
+    return sorted(_METHODS)
+
+
+def method_class(name: str) -> type:
+    """The class registered as ``name`` (a one-line :class:`ConfigError` naming the registered ones if none)."""
+    require(name in _METHODS, "method", name, f"one of {', '.join(method_names())}")
+    entry = _METHODS[name]
+    if isinstance(entry, str):
+        import importlib
+
+        module, _, attribute = entry.partition(":")
+        entry = _METHODS[name] = getattr(importlib.import_module(module), attribute)
+    return entry
+
+
+def method_config(values: Any) -> MethodConfig:
+    """A composed ``method`` section as its method's schema (``config_class``), validated (one-line errors)."""
+    if isinstance(values, MethodConfig):
+        return values
+    values = OmegaConf.to_container(values, resolve=True) if isinstance(values, DictConfig) else dict(values)
+    schema = method_class(values.get("name")).config_class
+    return validated_section(schema, values, prefix="method")
 
 
 @dataclass
@@ -349,12 +373,12 @@ class EvaluationConfig:
     min_train_success: float = MISSING  # periodic evaluations wait for this training success on the full start box
 
     def __post_init__(self) -> None:
-        _require(self.episodes >= 1, "eval.episodes", self.episodes, ">= 1")
-        _require(self.interval >= 0, "eval.interval", self.interval, ">= 0")
-        _require(self.interval_seconds >= 0, "eval.interval_seconds", self.interval_seconds,
+        require(self.episodes >= 1, "eval.episodes", self.episodes, ">= 1")
+        require(self.interval >= 0, "eval.interval", self.interval, ">= 0")
+        require(self.interval_seconds >= 0, "eval.interval_seconds", self.interval_seconds,
                  ">= 0 s (0 = evaluate every eval.interval iterations)")
-        _require(self.periodic_episodes >= 1, "eval.periodic_episodes", self.periodic_episodes, ">= 1")
-        _require(0.0 <= self.min_train_success <= 1.0, "eval.min_train_success", self.min_train_success,
+        require(self.periodic_episodes >= 1, "eval.periodic_episodes", self.periodic_episodes, ">= 1")
+        require(0.0 <= self.min_train_success <= 1.0, "eval.min_train_success", self.min_train_success,
                  "in [0, 1] (0 = no wait)")
 
 
@@ -369,9 +393,9 @@ class CurriculumConfig:
     promotion_success: float = MISSING  # training success rate (one iteration) that earns a promotion
 
     def __post_init__(self) -> None:
-        _require(0 < self.initial_scale <= 1, "curriculum.initial_scale", self.initial_scale, "(0, 1]")
-        _require(self.scale_step > 0, "curriculum.scale_step", self.scale_step, "> 0")
-        _require(0 < self.promotion_success <= 1, "curriculum.promotion_success", self.promotion_success,
+        require(0 < self.initial_scale <= 1, "curriculum.initial_scale", self.initial_scale, "(0, 1]")
+        require(self.scale_step > 0, "curriculum.scale_step", self.scale_step, "> 0")
+        require(0 < self.promotion_success <= 1, "curriculum.promotion_success", self.promotion_success,
                  "(0, 1]")
 
 
@@ -384,7 +408,7 @@ class TrainConfig:
     simulation: Any = MISSING
     agent: Any = MISSING
     ppo: Any = MISSING
-    method: Any = MISSING
+    method: Any = MISSING  # a MethodConfig subclass: the schema of the method it names (method_config)
     eval: EvaluationConfig = MISSING
     curriculum: CurriculumConfig = MISSING
     speed: float | None = MISSING
@@ -400,14 +424,14 @@ class TrainConfig:
     def __post_init__(self) -> None:
         _require_device("device", self.device)
         _require_shorthands_used(self.task, self.speed, self.radius)
-        _require(self.threads is None or self.threads >= 1, "threads", self.threads, "null or an integer >= 1")
-        _require(self.checkpoint_interval >= 1, "checkpoint_interval", self.checkpoint_interval, ">= 1")
-        _require(0 <= self.target_success <= 1, "target_success", self.target_success, "[0, 1]")
+        require(self.threads is None or self.threads >= 1, "threads", self.threads, "null or an integer >= 1")
+        require(self.checkpoint_interval >= 1, "checkpoint_interval", self.checkpoint_interval, ">= 1")
+        require(0 <= self.target_success <= 1, "target_success", self.target_success, "[0, 1]")
         workers = self.ppo.collector_workers
-        _require(workers == 1 or not self.resume, "ppo.collector_workers", workers,
+        require(workers == 1 or not self.resume, "ppo.collector_workers", workers,
                  "1 with resume (exact resume needs the single in-process collector's carried rows)")
-        _require(workers == 1 or self.method.name != "reuse", "ppo.collector_workers", workers,
-                 "1 with method=reuse (the reuse transform carries episodes of the single collector's envs)")
+        self.method = method_config(self.method)
+        self.method.check(self)
 
 
 @dataclass
@@ -426,11 +450,11 @@ class EvaluateConfig:
     output_dir: str | None = MISSING
 
     def __post_init__(self) -> None:
-        _require(self.episodes >= 1, "episodes", self.episodes, ">= 1")
-        _require(self.trajectories >= 0, "trajectories", self.trajectories, ">= 0")
+        require(self.episodes >= 1, "episodes", self.episodes, ">= 1")
+        require(self.trajectories >= 0, "trajectories", self.trajectories, ">= 0")
         _require_device("device", self.device)
         _require_shorthands_used(self.task, self.speed, self.radius)
-        _require(self.threads is None or self.threads >= 1, "threads", self.threads, "null or an integer >= 1")
+        require(self.threads is None or self.threads >= 1, "threads", self.threads, "null or an integer >= 1")
 
 
 def _default_if_null(value: Any, default: Any) -> Any:
@@ -446,7 +470,7 @@ def register_configs() -> None:
     store.store(name="evaluate_schema", node=EvaluateConfig)
     for group, node in (
         ("task", TaskConfig), ("reward", RewardConfig), ("simulation", SimulationConfig),
-        ("agent", AgentConfig), ("ppo", PPOConfig), ("method", MethodConfig),
+        ("agent", AgentConfig), ("ppo", PPOConfig),
     ):
         store.store(group=f"schema/{group}", name="base", node=node)
 
@@ -490,8 +514,9 @@ def _chain(error: BaseException) -> list[BaseException]:
     return chain
 
 
-def _reason(error: Exception, override: str, config_name: str) -> str:
-    """What is allowed instead of ``override``, from the error Hydra or OmegaConf raised for it."""
+def _reason(error: Exception, override: str, config_name: str, before: tuple[str, ...] = ()) -> str:
+    """What is allowed instead of ``override``, from the error Hydra or OmegaConf raised for it (``before``: the
+    overrides ahead of it, which compose: they choose the sections whose keys are allowed)."""
     from hydra.errors import HydraException, MissingConfigException
     from omegaconf.errors import ConfigAttributeError, ConfigKeyError
 
@@ -500,7 +525,7 @@ def _reason(error: Exception, override: str, config_name: str) -> str:
     chain = _chain(error)
     if any(isinstance(cause, (ConfigKeyError, ConfigAttributeError)) for cause in chain):
         parent, _, leaf = override_key(override).rpartition(".")
-        defaults = compose_config(config_name=config_name)
+        defaults = compose_config(*before, config_name=config_name)
         node = OmegaConf.select(defaults, parent) if parent else defaults
         if isinstance(node, DictConfig):
             where = parent or "the config"
@@ -522,19 +547,31 @@ def compose_checked(*overrides: str, config_name: str = "config") -> DictConfig:
             compose_config(*overrides[:count], config_name=config_name)
         except Exception as error:
             culprit = overrides[count - 1]
-            raise ConfigError(f"{culprit} is not allowed: {_reason(error, culprit, config_name)}") from None
+            reason = _reason(error, culprit, config_name, tuple(overrides[:count - 1]))
+            raise ConfigError(f"{culprit} is not allowed: {reason}") from None
     raise ConfigError(str(failure).strip().splitlines()[0]) from None
 
 
-def validated_section(schema, values: dict) -> Any:
-    """One config section (e.g. a checkpoint's saved ``task``) checked against its schema, as a dataclass."""
+def validated_section(schema, values: dict, prefix: str = "") -> Any:
+    """One config section (e.g. a checkpoint's saved ``task``) checked against its schema, as a dataclass; an
+    unknown key or a value of the wrong type is one line naming it (under ``prefix``, e.g. ``method``)."""
     try:
         return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema), values))
     except Exception as error:
         cause = error
         while cause is not None and not isinstance(cause, ConfigError):
             cause = cause.__cause__ or cause.__context__
-        raise (cause or ConfigError(str(error).splitlines()[0])) from None
+        if cause is None:
+            key = getattr(error, "full_key", None)
+            where = f"{prefix}.{key}" if prefix and key else key or prefix
+            message = str(error).splitlines()[0]
+            if key and isinstance(values, dict) and key in values:
+                allowed = {int: "an integer", float: "a number", bool: "true or false", str: "a string"}.get(
+                    typing.get_type_hints(schema).get(key), message)
+                cause = ConfigError(f"{where}={one_line(values[key])} is not allowed: {allowed}")
+            else:
+                cause = ConfigError(f"{where}: {message}" if where else message)
+        raise cause from None
 
 
 def saved_agent_config(saved: dict) -> AgentConfig:

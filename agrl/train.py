@@ -18,7 +18,7 @@ from pathlib import Path
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, OmegaConf, open_dict
 
 from agrl.cli import RESUMABLE_OVERRIDES, refuse_unresumable, run_checked
 from agrl.config import ConfigError, load_config, override_key
@@ -45,8 +45,14 @@ def _resume_config(cfg: DictConfig, reference: str, requeued: bool = False) -> t
         log.warning("%s (the damaged file is kept as %s)", note, set_aside_damaged(latest))
         path = latest
     payload["_path"] = str(path)
-    # The composed config carries the typed group schemas; the run's saved values go on top.
-    saved = OmegaConf.merge(cfg, payload["config"])
+    # The composed config carries the typed group schemas; the run's saved values go on top. The method section
+    # is the saved one whole (another method than the command line's default has other keys); checkpoints
+    # written when all methods shared one schema hold None for the keys their method does not have.
+    saved_values = dict(payload["config"])
+    method = {key: value for key, value in saved_values.pop("method").items() if value is not None}
+    saved = OmegaConf.merge(cfg, saved_values)
+    with open_dict(saved):
+        saved.method = method
     given = [] if requeued else list(HydraConfig.get().overrides.task)
     refuse_unresumable(given)  # checked before Hydra ran too (agrl.cli); here for callers of main() itself
     overrides = [override for override in given if override_key(override).startswith(RESUMABLE_OVERRIDES)]
@@ -101,15 +107,10 @@ def main(cfg: DictConfig) -> None:
 
 
 def check_inputs(config) -> None:
-    """Load the baseline a run starts from as the run will (agrl.cli.run_checked calls this before Hydra runs)."""
-    if config.method.name == "scratch":
-        return
-    from agrl.rl.models import make_actor, make_critic
-    from agrl.rl.trainer import load_baseline
+    """Read the files the run will read, as it will (agrl.cli.run_checked calls this before Hydra runs)."""
+    from agrl.config import method_class
 
-    agent = config.agent
-    load_baseline(config, "cpu", make_actor(agent.actor_hidden, agent.activation, "cpu", agent.observation),
-                  make_critic(agent.critic_hidden, agent.activation, "cpu", agent.observation))
+    method_class(config.method.name).check_inputs(config)
 
 
 if __name__ == "__main__":

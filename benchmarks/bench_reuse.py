@@ -130,7 +130,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             payload = load_checkpoint(args.checkpoint, required=("actor", "critic"))
             load_module_state(trainer.actor, payload["actor"], args.checkpoint, "actor")
             load_module_state(trainer.critic, payload["critic"], args.checkpoint, "critic")
-        transform = trainer.reuse
+        transform = trainer.method.transform
         # Count the rows the relabelling simulates (its cost, independent of the machine's load), per call's size;
         # the envs' own steps (collection) call the same simulator outside the relabelling and are not counted.
         simulated = SimulatorCount()

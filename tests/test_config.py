@@ -27,6 +27,7 @@ from agrl.config import (
     SimulationConfig,
     TaskConfig,
     TrainConfig,
+    compose_checked,
     guidance_parameters,
     load_config,
     task_label,
@@ -184,8 +185,10 @@ def test_wrong_type_names_the_value():
         (("eval.min_train_success=1.5",), "eval.min_train_success"),
         (("ppo.target_kl=-0.01",), "ppo.target_kl"),
         (("task=irregular", "task.change_probability=2"), "task.change_probability"),
-        (("method=pretrained", "method.start_from_baseline=true"), "method.start_from_baseline"),
-        (("method.start_from_baseline=true",), "method.start_from_baseline"),
+        (("method=reuse", "method.keep=middle"), "method.keep='middle'"),
+        (("method=reuse", "method.max_candidates=many"), "method.max_candidates='many'"),
+        (("method=reuse", "ppo.collector_workers=2"), "ppo.collector_workers=2"),
+        (("method=pretrained", "method.baseline=null"), "method.baseline=None"),
         (("simulation.initial_state.min_horizontal_distance=900",), "simulation.initial_state.min_horizontal_distance"),
     ],
 )
@@ -195,6 +198,16 @@ def test_config_errors_are_one_line_and_name_the_key(overrides, named):
     message = str(info.value)
     assert named in message
     assert "\n" not in message
+
+
+@pytest.mark.parametrize("method", ["scratch", "pretrained"])
+def test_a_knob_of_another_method_is_one_line_naming_the_keys_this_one_has(method):
+    # Each method has its own schema: reuse's knobs are not keys of the others.
+    with pytest.raises(ConfigError) as info:
+        compose_checked(f"method={method}", "method.start_from_baseline=true")
+    keys = {"scratch": "name, use_curriculum, baseline", "pretrained": "name, baseline, use_curriculum"}[method]
+    assert str(info.value) == ("method.start_from_baseline=true is not allowed: method has no key "
+                               f"'start_from_baseline'; its keys: {keys}")
 
 
 def test_task_label_names_the_motion_parameters():

@@ -27,3 +27,10 @@ def test_every_shipped_agent_and_its_evaluation_record_is_package_data():
             relative = path.relative_to(REPO / "agrl").as_posix()
             assert any(fnmatch.fnmatch(relative, pattern) for pattern in patterns), \
                 f"agrl/{relative} ({agent.name}) matches none of pyproject's agrl package-data: {patterns}"
+
+
+def test_every_python_package_of_agrl_is_listed():
+    # A package left out of the list is silently missing from the wheel (an ImportError only once installed).
+    packages = {".".join(path.parent.relative_to(REPO).parts) for path in (REPO / "agrl").rglob("__init__.py")}
+    listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    assert packages <= listed, f"packages missing from [tool.setuptools] packages: {sorted(packages - listed)}"

@@ -1,7 +1,9 @@
-"""PPO training: Collector -> GAE -> replay buffer (with the optional reuse transform) -> ClipPPOLoss.
+"""PPO training: Collector -> GAE -> replay buffer (with the method's transform, if any) -> ClipPPOLoss.
 
 Laid out like TorchRL's own PPO script (``sota-implementations/ppo``): setup in small
-named steps, then one loop. What a long experiment needs beyond it lives beside:
+named steps, then one loop. The training method (scratch, pretrained, policy reuse, or
+one registered from outside) plugs in through the hooks of :class:`agrl.rl.methods.Method`;
+the trainer names none. What a long experiment needs beyond it lives beside:
 the PPO update (:mod:`agrl.rl.ppo`), the curriculum (:mod:`agrl.rl.curriculum`),
 metrics and dashboards (:mod:`agrl.rl.metrics`), exact-resume state
 (:mod:`agrl.rl.run_state`), checkpoint files (:mod:`agrl.rl.checkpoint`) and the
@@ -14,7 +16,6 @@ import copy
 import functools
 import json
 import logging
-import math
 import sys
 import time
 from dataclasses import dataclass
@@ -28,19 +29,11 @@ from tensordict import TensorDictBase
 from torchrl.collectors import Collector, MultiSyncCollector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
-from torchrl.modules import ProbabilisticActor, ValueOperator
 
-from agrl.config import TrainConfig, task_label, to_guidance_parameters
-from agrl.core.observation import LEGACY_OBSERVATION
+from agrl.config import TrainConfig, method_class, task_label, to_guidance_parameters
 from agrl.envs.guidance import GuidanceEnv
 from agrl.plots import plot_trajectories, trajectory_image
-from agrl.rl.checkpoint import (
-    CheckpointError,
-    load_checkpoint,
-    load_module_state,
-    resolve_checkpoint_path,
-    save_checkpoint,
-)
+from agrl.rl.checkpoint import CheckpointError, load_module_state, save_checkpoint
 from agrl.rl.curriculum import SharedScaleGuidanceEnv, promoted_scale, shared_scale, start_distribution
 from agrl.rl.evaluation import instruction_latency_ms, run_episodes, summarise, write_evaluation
 from agrl.rl.metrics import MetricsLog, episode_statistics, progress_line
@@ -49,14 +42,12 @@ from agrl.rl.ppo import (
     CompiledLoss,
     TrainingDiverged,
     annealed_learning_rate,
-    clip_fraction_by_source,
     make_advantage,
     make_loss,
     make_optimizer,
     ppo_update,
     update_fields,
 )
-from agrl.rl.reuse import PolicyReuseTransform, relabelled_ppo_targets
 from agrl.rl.run_state import (
     carried_rows,
     carried_rows_from_checkpoint,
@@ -81,32 +72,6 @@ class Counters:
     next_evaluation_time: float = 0.0  # s of training; the wall-clock evaluation schedule (eval.interval_seconds)
 
 
-def load_baseline(cfg: TrainConfig, device: torch.device | str, actor: ProbabilisticActor, critic: ValueOperator):
-    """``(B, path, B's observation)`` for ``cfg.method.baseline``: B is the frozen baseline actor. For pretrained
-    (and reuse from B) Z's ``actor`` and ``critic`` start from B's weights. A file that does not fit (unreadable,
-    another observation, other network shapes) is a :class:`CheckpointError` naming it."""
-    reference = cfg.method.baseline
-    try:
-        path = resolve_checkpoint_path(reference)
-        payload = load_checkpoint(path, required=("actor", "critic"))
-    except CheckpointError as error:
-        raise CheckpointError(f"method.baseline: {error}") from None
-    baseline_agent = payload.get("config", {}).get("agent", {})
-    observation = baseline_agent.get("observation", LEGACY_OBSERVATION)
-    if cfg.method.name == "pretrained" or cfg.method.start_from_baseline:
-        if observation != cfg.agent.observation:
-            raise CheckpointError(
-                f"{path}: agent.observation={cfg.agent.observation} is not allowed when starting from this "
-                f"baseline: it was trained with observation={observation}; train Z with the same"
-            )
-        load_module_state(actor, payload["actor"], path, "actor")
-        load_module_state(critic, payload["critic"], path, "critic")
-    baseline = make_actor(baseline_agent.get("actor_hidden", cfg.agent.actor_hidden),
-                          baseline_agent.get("activation", cfg.agent.activation), device, observation)
-    load_module_state(baseline, payload["actor"], path, "baseline actor")
-    return baseline.eval().requires_grad_(False), path, observation
-
-
 class Trainer:
     """One training run in ``run_dir`` (a Hydra run directory)."""
 
@@ -125,12 +90,9 @@ class Trainer:
         self.env, self.eval_env = self._make_envs()
         self.actor = make_actor(cfg.agent.actor_hidden, cfg.agent.activation, self.device, cfg.agent.observation)
         self.critic = make_critic(cfg.agent.critic_hidden, cfg.agent.activation, self.device, cfg.agent.observation)
-        self.baseline_actor = None  # B: the frozen baseline actor (pretrained and reuse also start Z from it)
-        if cfg.method.name != "scratch":
-            self.baseline_actor, self.baseline_path, self.baseline_observation = load_baseline(
-                cfg, self.device, self.actor, self.critic)
+        self.method = method_class(cfg.method.name)(cfg.method)  # an agrl.rl.methods.Method
+        self.method.start(self)
         self._make_ppo()
-        self.reuse = self._make_reuse_transform() if cfg.method.name == "reuse" else None
         self.buffer = self._make_buffer()
         self.counters = self._initial_counters()
         if resume_payload is not None:
@@ -163,7 +125,8 @@ class Trainer:
         concatenated along the env dimension (the same keys, shapes and dtypes); the actor's weights go to the
         workers before each batch, and so does the curriculum's scale (:class:`SharedScaleGuidanceEnv` reads
         ``self.worker_scale``, in shared memory, at each reset). Config validation keeps N > 1 to runs without
-        reuse or resume, which need ``self.env`` to be the envs that collect."""
+        resume and to methods that allow it (policy reuse does not), which need ``self.env`` to be the envs that
+        collect."""
         workers = self.cfg.ppo.collector_workers
         if workers == 1:
             return Collector(self.env, self.actor, frames_per_batch=self.frames_per_batch, total_frames=-1,
@@ -189,44 +152,16 @@ class Trainer:
     def _make_ppo(self) -> None:
         ppo, gamma = self.cfg.ppo, self.cfg.reward.gamma
         self.advantage = make_advantage(gamma, ppo.gae_lambda, self.critic, self.device)
-        # For re-played trajectories the critic's values come with the data, on valid rows only (agrl.rl.reuse).
-        self.replay_advantage = make_advantage(gamma, ppo.gae_lambda, None, self.device)
         self.loss = make_loss(self.actor, self.critic, ppo.clip_epsilon, ppo.entropy_coeff, ppo.critic_coeff)
         self.optimizer = make_optimizer(self.loss, ppo.learning_rate)
         # What the update calls: the loss itself, or the same loss compiled (ppo.compile_loss).
         self.update_loss = CompiledLoss(self.loss) if ppo.compile_loss else self.loss
 
-    def _storage_size(self) -> int:
-        # Relabelled episodes may be longer than the rows they replace (bounded in agrl.rl.reuse).
-        return self.frames_per_batch * (3 if self.cfg.method.name == "reuse" else 1)
-
-    def _make_reuse_transform(self) -> PolicyReuseTransform:
-        method = self.cfg.method
-        return PolicyReuseTransform(
-            baseline_actor=self.baseline_actor, env=self.env,
-            initial_selection_factor=method.initial_selection_factor, selection_decay=method.selection_decay,
-            candidate_stride=method.candidate_stride, max_candidates=method.max_candidates, keep=method.keep,
-            ppo_targets=self._ppo_targets, max_rows=self._storage_size(), seed=self.cfg.seed,
-            relabel_unfinished=method.relabel_unfinished, relabel_own_successes=method.relabel_own_successes,
-            baseline_observation=self.baseline_observation,
-        )
-
-    def _ppo_targets(self, trajectories: TensorDictBase, valid: torch.Tensor) -> TensorDictBase:
-        """What PPO needs for relabelled trajectories: a behaviour log-prob and GAE (see docs/policy_reuse.md)."""
-        actor = self.actor if self.cfg.method.behaviour_log_prob == "current" else None
-        return relabelled_ppo_targets(trajectories, valid, critic=self.critic, advantage=self.replay_advantage,
-                                      actor=actor)
-
     def _make_buffer(self) -> TensorDictReplayBuffer:
-        return TensorDictReplayBuffer(storage=LazyTensorStorage(self._storage_size(), device=self.device),
-                                      sampler=SamplerWithoutReplacement(), batch_size=self.cfg.ppo.minibatch_size,
-                                      transform=self.reuse)
-
-    def _buffer_rows(self, data: TensorDictBase) -> TensorDictBase:
-        """The collected rows as the buffer stores them: only the fields the update reads, except when the
-        reuse transform runs on the way in, since it re-simulates episodes from their full state."""
-        rows = data.reshape(-1)
-        return rows if self.reuse is not None else rows.select(*update_fields(self.loss))
+        storage = LazyTensorStorage(self.method.storage_rows(self.frames_per_batch), device=self.device)
+        return TensorDictReplayBuffer(storage=storage, sampler=SamplerWithoutReplacement(),
+                                      batch_size=self.cfg.ppo.minibatch_size,
+                                      transform=self.method.buffer_transform(self))
 
     def _initial_counters(self) -> Counters:
         curriculum = self.cfg.curriculum
@@ -243,7 +178,7 @@ class Trainer:
             "optimizer": copy.deepcopy(self.optimizer.state_dict()),
             "counters": vars(self.counters).copy(),
             "carrier": carried_rows(self.collector) if isinstance(self.collector, Collector) else None,
-            "reuse": self.reuse.state_dict() if self.reuse is not None else None,
+            "method_state": self.method.state_dict(),
             "rng": rng_states(self.env),
             "config": OmegaConf.to_container(config, resolve=True),
             "config_yaml": OmegaConf.to_yaml(config, resolve=True),
@@ -262,8 +197,9 @@ class Trainer:
                 f"{path}: checkpoint has {carrier.batch_size[0]} environments, this run has {self.env.batch_size[0]}"
             )
         self.env.restore_on_next_reset(carrier)
-        if self.reuse is not None and payload.get("reuse") is not None:
-            self.reuse.load_state_dict(payload["reuse"])
+        state = payload.get("method_state", payload.get("reuse"))  # "reuse": checkpoints written before methods
+        if state is not None:
+            self.method.load_state_dict(state)
 
     def save(self, name: str, state: dict[str, Any] | None = None) -> Path:
         """Write checkpoint ``name``; ``latest`` keeps the one it replaces (``latest.previous.pt``), which a
@@ -301,30 +237,24 @@ class Trainer:
         return rate
 
     def learn(self, data: TensorDictBase) -> tuple[TensorDictBase, dict[str, float], float]:
-        """One PPO update from a collected batch: GAE, the replay buffer (through the reuse transform, Algorithm
-        1, if there is one), then epochs of minibatches. Returns the batch with its advantages, the mean loss
-        terms and the seconds spent filling the buffer (the relabelling, for reuse)."""
+        """One PPO update from a collected batch: GAE, the replay buffer (through the method's transform, if it
+        has one), then epochs of minibatches. Returns the batch with its advantages, the mean loss terms and the
+        seconds spent filling the buffer (the relabelling, for policy reuse)."""
         with torch.no_grad():
             data = self.advantage(data)
         self.buffer.empty()
-        relabel_start = time.perf_counter()
-        self.buffer.extend(self._buffer_rows(data))
-        relabel_time = time.perf_counter() - relabel_start
+        fill_start = time.perf_counter()
+        self.buffer.extend(self.method.buffer_rows(data.reshape(-1), update_fields(self.loss)))
+        fill_time = time.perf_counter() - fill_start
         ppo = self.cfg.ppo
+        max_updates = self.method.max_updates(self.frames_per_batch, ppo.epochs, ppo.minibatch_size)
         try:
             losses = ppo_update(self.update_loss, self.optimizer, self.buffer, ppo.epochs, ppo.max_grad_norm,
-                                where=f"at iteration {self.counters.iteration + 1}", max_updates=self._max_updates(),
+                                where=f"at iteration {self.counters.iteration + 1}", max_updates=max_updates,
                                 target_kl=ppo.target_kl)
         except TrainingDiverged as error:
             raise TrainingDiverged(f"{error}; last good checkpoint kept in {self.checkpoint_dir}") from None
-        return data, losses, relabel_time
-
-    def _max_updates(self) -> int | None:
-        """``method.equal_update_cost``: the minibatches of a plain iteration (``ppo.epochs`` passes over one
-        collected batch), however many rows the reuse transform stored; None: ``ppo.epochs`` passes over them all."""
-        if not self.cfg.method.equal_update_cost:
-            return None
-        return self.cfg.ppo.epochs * math.ceil(self.frames_per_batch / self.cfg.ppo.minibatch_size)
+        return data, losses, fill_time
 
     def _evaluation_due(self, metrics: dict[str, float]) -> bool:
         """Whether a periodic evaluation follows this iteration (``metrics``: its training statistics)."""
@@ -410,14 +340,13 @@ class Trainer:
               stop: StopSignals) -> str:
         """Iterate until ``reason`` says why to stop; a stop signal saves ``latest`` and raises
         :class:`Preempted` after the iteration it arrived in (the state is whole only between iterations)."""
-        cfg = self.cfg
         batches = iter(self.collector)
         while reason is None:
             iteration_start = time.perf_counter()
             data = next(batches)
             collect_time = time.perf_counter() - iteration_start
             learning_rate = self._set_learning_rate()
-            data, losses, relabel_time = self.learn(data)
+            data, losses, fill_time = self.learn(data)
 
             self.counters.iteration += 1
             self.counters.frames += data.numel()
@@ -429,9 +358,7 @@ class Trainer:
                        "time/collection_decisions_per_second": data.numel() / max(collect_time, 1e-9),
                        "time/iteration_seconds": iteration_time, "time/wall_time": self.counters.wall_time}
             self._advance_curriculum(metrics)
-            if self.reuse is not None:  # only reuse has relabelled rows: no full-buffer read otherwise
-                metrics.update(self.reuse.last_statistics(), **{"time/reuse_seconds": relabel_time},
-                               **clip_fraction_by_source(self.actor, self.buffer[:], cfg.ppo.clip_epsilon))
+            metrics.update(self.method.iteration_metrics(self, fill_time))
             if self._evaluation_due(metrics):
                 metrics.update(self._periodic_evaluation())
             self._snapshot = self._state()

@@ -16,7 +16,7 @@ from agrl.rl.trainer import Trainer, TrainingDiverged
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
 
 #: Everything a resumed run continues from (``config`` differs: it records ``resume=``).
-TRAINING_STATE = ("actor", "critic", "optimizer", "carrier", "rng", "reuse")
+TRAINING_STATE = ("actor", "critic", "optimizer", "carrier", "rng", "method_state")
 
 
 def assert_bitwise_equal(a, b, where: str = "payload") -> None:

@@ -1,0 +1,65 @@
+"""What the methods that start from a trained agent B share: loading B, and Z's starting weights from it."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import torch
+from torchrl.modules import ProbabilisticActor, ValueOperator
+
+from agrl.core.observation import LEGACY_OBSERVATION
+from agrl.rl.checkpoint import CheckpointError, load_checkpoint, load_module_state, resolve_checkpoint_path
+from agrl.rl.methods.base import Method
+from agrl.rl.models import make_actor, make_critic
+
+if TYPE_CHECKING:
+    from agrl.rl.trainer import Trainer
+
+
+def load_baseline(cfg: Any, device: torch.device | str, actor: ProbabilisticActor, critic: ValueOperator,
+                  start_from_it: bool):
+    """``(B, path, B's observation)`` for ``cfg.method.baseline``: B is the frozen baseline actor. With
+    ``start_from_it``, Z's ``actor`` and ``critic`` start from B's weights. A file that does not fit (unreadable,
+    another observation, other network shapes) is a :class:`CheckpointError` naming it."""
+    reference = cfg.method.baseline
+    try:
+        path = resolve_checkpoint_path(reference)
+        payload = load_checkpoint(path, required=("actor", "critic"))
+    except CheckpointError as error:
+        raise CheckpointError(f"method.baseline: {error}") from None
+    baseline_agent = payload.get("config", {}).get("agent", {})
+    observation = baseline_agent.get("observation", LEGACY_OBSERVATION)
+    if start_from_it:
+        if observation != cfg.agent.observation:
+            raise CheckpointError(
+                f"{path}: agent.observation={cfg.agent.observation} is not allowed when starting from this "
+                f"baseline: it was trained with observation={observation}; train Z with the same"
+            )
+        load_module_state(actor, payload["actor"], path, "actor")
+        load_module_state(critic, payload["critic"], path, "critic")
+    baseline = make_actor(baseline_agent.get("actor_hidden", cfg.agent.actor_hidden),
+                          baseline_agent.get("activation", cfg.agent.activation), device, observation)
+    load_module_state(baseline, payload["actor"], path, "baseline actor")
+    return baseline.eval().requires_grad_(False), path, observation
+
+
+class FromBaseline(Method):
+    """A method given a trained agent B (``method.baseline``): B is loaded, frozen, at the start of the run
+    (``self.baseline_actor``, ``self.baseline_observation``); Z starts from B's weights if
+    :meth:`starts_from_baseline`."""
+
+    baseline_actor: ProbabilisticActor | None = None
+
+    def starts_from_baseline(self) -> bool:
+        return True
+
+    @classmethod
+    def check_inputs(cls, train_config: Any) -> None:
+        agent = train_config.agent
+        load_baseline(train_config, "cpu", make_actor(agent.actor_hidden, agent.activation, "cpu", agent.observation),
+                      make_critic(agent.critic_hidden, agent.activation, "cpu", agent.observation),
+                      cls(train_config.method).starts_from_baseline())
+
+    def start(self, trainer: Trainer) -> None:
+        self.baseline_actor, self.baseline_path, self.baseline_observation = load_baseline(
+            trainer.cfg, trainer.device, trainer.actor, trainer.critic, self.starts_from_baseline())
