@@ -238,9 +238,9 @@ def test_malformed_device_is_refused(device):
         load(f"device={device}")
 
 
-SCHEMAS = [TaskConfig, RewardConfig, SimulationConfig, ToleranceConfig, LimitsConfig, ManeuverConfig, InitialStateConfig,
-           AgentConfig, PPOConfig,
-           MethodConfig, EvaluationConfig, CurriculumConfig, TrainConfig, EvaluateConfig]
+SCHEMAS = [TaskConfig, RewardConfig, SimulationConfig, ToleranceConfig, LimitsConfig, ManeuverConfig,
+           InitialStateConfig, AgentConfig, PPOConfig, MethodConfig, EvaluationConfig, CurriculumConfig, TrainConfig,
+           EvaluateConfig]
 
 
 @pytest.mark.parametrize("schema", SCHEMAS, ids=lambda schema: schema.__name__)

@@ -21,6 +21,15 @@ from agrl.config.compose import (
     override_key,
     validated_section,
 )
+from agrl.config.records import (
+    RENAMED_KEYS,
+    build_record,
+    guidance_parameters,
+    saved_agent_config,
+    saved_guidance_parameters,
+    to_guidance_parameters,
+    upgraded_config,
+)
 from agrl.config.schemas import (
     AgentConfig,
     CurriculumConfig,
@@ -50,15 +59,6 @@ from agrl.config.task import (
     require_shorthands_used,
     task_label,
 )
-from agrl.config.records import (
-    RENAMED_KEYS,
-    build_record,
-    guidance_parameters,
-    saved_agent_config,
-    saved_guidance_parameters,
-    to_guidance_parameters,
-    upgraded_config,
-)
 
 __all__ = [
     "MAX_DESTINATION_SPEED", "MAX_TURNING_RADIUS", "RENAMED_KEYS", "AgentConfig", "ConfigError", "CurriculumConfig",
@@ -66,6 +66,7 @@ __all__ = [
     "PPOConfig", "RewardConfig", "SimulationConfig", "TaskConfig", "ToleranceConfig", "TrainConfig", "build_record",
     "compose_checked", "compose_config", "config_options", "guidance_parameters", "load_config", "method_class",
     "method_config", "method_names", "one_line", "override_key", "register_configs", "register_method", "require",
-    "require_baseline", "require_device", "require_max_decisions", "require_range_pair", "require_shorthands_used", "saved_agent_config",
-    "saved_guidance_parameters", "task_label", "to_guidance_parameters", "upgraded_config", "validated_section",
+    "require_baseline", "require_device", "require_max_decisions", "require_range_pair", "require_shorthands_used",
+    "saved_agent_config", "saved_guidance_parameters", "task_label", "to_guidance_parameters", "upgraded_config",
+    "validated_section",
 ]

@@ -208,7 +208,8 @@ class SimulationConfig:
                  self.decision_period, f"> 0 s and a whole multiple of integration_step={self.integration_step} s")
         require_max_decisions(self.max_decisions, "simulation.max_decisions")
         space = self.airspace
-        require(set(space) == set(AIRSPACE_KEYS), "simulation.airspace", dict(space), f"keys {', '.join(AIRSPACE_KEYS)}")
+        require(set(space) == set(AIRSPACE_KEYS), "simulation.airspace", dict(space),
+                 f"keys {', '.join(AIRSPACE_KEYS)}")
         for axis in "xyz":
             require(space[f"{axis}_min"] < space[f"{axis}_max"], f"simulation.airspace.{axis}_min/max",
                      (space[f"{axis}_min"], space[f"{axis}_max"]), "min < max (m)")

@@ -32,8 +32,8 @@ import torch
 from tensordict import TensorDict
 from tensordict._reductions import _make_td
 
-from agrl.config import upgraded_config
 from agrl.baselines import SHIPPED_AGENTS, shipped_agent_names
+from agrl.config import upgraded_config
 
 FORMAT_VERSION = 2
 #: The only non-plain objects a format-1 checkpoint holds (checked with
