@@ -388,3 +388,32 @@ def test_collector_workers_must_divide_the_envs():
         load("ppo.collector_workers=2", "resume=runs/some_run")
     assert load("ppo.collector_workers=2", "curriculum.enabled=false").ppo.collector_workers == 2
     assert load("ppo.collector_workers=2").curriculum.enabled  # the workers' envs follow the curriculum too
+
+
+def _unread(record_type: type, values: dict, prefix: str = "") -> set[str]:
+    """The keys of a config section (nested sections too) that name no field of ``record_type``."""
+    hints = typing.get_type_hints(record_type)
+    names = {spec.name for spec in dataclasses.fields(record_type)}
+    unread = {f"{prefix}{key}" for key in values if key not in names}
+    for name in names & set(values):
+        if dataclasses.is_dataclass(hints[name]) and isinstance(values[name], dict):
+            unread |= _unread(hints[name], values[name], f"{prefix}{name}.")
+    return unread
+
+
+def test_every_key_of_the_task_sections_is_a_record_field_of_the_same_name():
+    """One name per value: the YAML key is the record field it sets (the converse of the test above), so the
+    records are built by name (agrl.config.records.build_record). The reward's ``name`` only picks the YAML."""
+    from omegaconf import OmegaConf
+
+    from agrl.core.reward import RewardParameters
+    from agrl.core.simulation import SimulationParameters
+
+    config = OmegaConf.to_container(compose_config("task=irregular"), resolve=True)
+    assert _unread(RewardParameters, config["reward"]) == {"name"}
+    assert _unread(DestinationMotion, config["task"]) == set()
+    simulation = config["simulation"]
+    # GuidanceParameters takes the simulation section's records and values; its simulation record the rest.
+    assert _unread(GuidanceParameters, simulation) == {"integration_step", "decision_period", "airspace", "tolerance",
+                                                       "limits"}
+    assert _unread(SimulationParameters, simulation) == {"max_decisions", "maneuvers", "initial_state", "compile"}
