@@ -65,3 +65,18 @@ def test_an_old_checkpoint_reads_as_today_s_and_gives_the_same_records(tmp_path)
     expected = guidance_parameters("task=uniform", "speed=20")
     assert saved_guidance_parameters(_downgraded(today), compile=False) == expected
     assert dataclasses.replace(saved_guidance_parameters(today), compile=False) == expected
+
+
+def test_an_old_guide_export_s_limits_in_radians_still_load(tmp_path):
+    """ONNX and torch.export files written before the flight-path limit was kept in degrees hold it in radians."""
+    import json
+    import math
+
+    from agrl.guide import _from_metadata
+
+    airspace = {"x_min": -1.0, "x_max": 1.0, "y_min": -1.0, "y_max": 1.0, "z_min": 0.0, "z_max": 1.0}
+    old = json.dumps({"airspace": airspace,
+                      "limits": {"min_speed": 100.0, "max_speed": 250.0, "max_flight_path_angle": math.radians(30.0)}})
+    _, limits, _ = _from_metadata(old, tmp_path / "old.onnx")
+    assert limits.max_flight_path_angle == math.radians(30.0)  # the radians the export was made with, exactly
+    assert abs(limits.max_flight_path_angle_deg - 30.0) < 1e-12
