@@ -126,7 +126,10 @@ def _metadata(airspace: Airspace, limits: AircraftLimits, source: str) -> str:
 def _from_metadata(text: str, path: Path) -> tuple[Airspace, AircraftLimits, str]:
     try:
         values = json.loads(text)
-        return Airspace(**values["airspace"]), AircraftLimits(**values["limits"]), values.get("source", str(path))
+        limits = dict(values["limits"])
+        if "max_flight_path_angle" in limits:  # an export written when the limit was stored in radians
+            limits["max_flight_path_angle_deg"] = math.degrees(limits.pop("max_flight_path_angle"))
+        return Airspace(**values["airspace"]), AircraftLimits(**limits), values.get("source", str(path))
     except (ValueError, KeyError, TypeError) as error:
         raise GuideError(f"{path}: not an agrl guide export (bad {METADATA_KEY} metadata: {error})") from None
 

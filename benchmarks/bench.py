@@ -55,7 +55,7 @@ from agrl.cli import positive_int
 from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.parameters import GuidanceParameters
 from agrl.core.simulation import DecisionSimulator
-from agrl.envs.gym import guidance_parameters
+from agrl.envs.gym import gym_parameters
 from agrl.reference import reference_decision
 
 FULL_BATCH_SIZES = (1024, 4096, 16384)
@@ -278,7 +278,7 @@ def bench_guide(kind: str, batch: int, repeats: int, min_seconds: float) -> list
             path = f"{folder}/guide{SUFFIXES[kind]}"
             (export_onnx if kind == "onnx" else export_torch)("baseline", path)
             guide = Guide.load(path)
-    params = guidance_parameters(**TASK)
+    params = gym_parameters(**TASK)
     aircraft, destination, _, _, _ = _inputs(params, batch, torch.device("cpu"))
     last_action = torch.randint(0, 7, (batch,), generator=torch.Generator().manual_seed(1))
     aircraft, destination, last_action = aircraft.numpy(), destination.numpy(), last_action.numpy()
@@ -387,7 +387,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         torch.set_num_threads(args.threads)
     random.seed(0)
     torch.manual_seed(0)
-    params = guidance_parameters(**TASK)  # the training defaults (conf/), compile chosen per measurement
+    params = gym_parameters(**TASK)  # the training defaults (conf/), compile chosen per measurement
     device = args.device
     emit(machine_record(device))
 

@@ -316,7 +316,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     import torch
 
     from agrl.config import ConfigError, to_guidance_parameters
-    from agrl.envs.gym import guidance_parameters
+    from agrl.envs.gym import gym_parameters
 
     if args.threads is not None:
         torch.set_num_threads(args.threads)
@@ -332,7 +332,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ConfigError, HydraException) as error:  # a bad --agrl-override: one line, not Hydra's traceback
         raise SystemExit(f"benchmarks.bench_race: error: {str(error).splitlines()[0]}") from None
     # One task for both: the gym env's parameters must be those agrl trains on (overrides may not change them).
-    params = guidance_parameters(task=args.task, max_decisions=args.max_decisions, compile=args.compile)
+    params = gym_parameters(task=args.task, max_decisions=args.max_decisions, compile=args.compile)
     trained = to_guidance_parameters(config.task, config.reward, config.simulation)
     if dataclasses.replace(trained, compile=params.compile) != params:
         raise SystemExit("benchmarks.bench_race: error: --agrl-override changed the task (task, reward or simulation): "

@@ -170,10 +170,10 @@ def test_race_prints_both_trainers_evaluations_and_results(benchmark_runs):
 
 
 def test_race_result_reports_when_each_target_was_first_reached():
-    from agrl.envs.gym import guidance_parameters
+    from agrl.envs.gym import gym_parameters
     from benchmarks.bench_race import RaceEvaluation, TrainingClock
 
-    evaluation = RaceEvaluation(guidance_parameters(), episodes=2, seed=0, clock=TrainingClock(),
+    evaluation = RaceEvaluation(gym_parameters(), episodes=2, seed=0, clock=TrainingClock(),
                                 targets=(0.95, 0.99), emit=lambda record: None)
     rates = [(0.0, 0.1, 0), (10.0, 0.96, 100), (20.0, 0.9, 200), (30.0, 0.995, 300), (40.0, 1.0, 400)]
     evaluation.history = [{"trainer": "agrl", "training_seconds": s, "success_rate": r, "decisions": d}

@@ -20,12 +20,14 @@ from agrl.config import (
     EvaluateConfig,
     EvaluationConfig,
     InitialStateConfig,
+    LimitsConfig,
     ManeuverConfig,
     MethodConfig,
     PPOConfig,
     RewardConfig,
     SimulationConfig,
     TaskConfig,
+    ToleranceConfig,
     TrainConfig,
     compose_checked,
     guidance_parameters,
@@ -70,11 +72,12 @@ def test_curved_radius_flows_into_task():
     assert cfg.task.radius == 500.0
     assert cfg.task.speed == 20.0  # the paper's curved-motion speed
     params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, compile=False)
-    assert params.destination.kind is MotionKind.CURVED
+    assert params.destination.name is MotionKind.CURVED
     assert params.destination.radius == 500.0
+    assert params.destination.turn_direction == 1.0 and isinstance(params.destination.turn_direction, float)
     assert params.compile is False
     assert params.simulation.tolerance.heading == pytest.approx(
-        math.radians(cfg.simulation.heading_tolerance_deg)
+        math.radians(cfg.simulation.tolerance.heading_deg)
     )
 
 
@@ -178,7 +181,7 @@ def test_wrong_type_names_the_value():
         (("reward.gamma=1.5",), "reward.gamma"),
         (("reward=switch", "reward.switch_cost=-0.1"), "reward.switch_cost"),
         (("simulation.decision_period=3.01",), "simulation.decision_period"),
-        (("simulation.min_speed=300",), "simulation.min_speed"),
+        (("simulation.limits.min_speed=300",), "simulation.limits.min_speed"),
         (("simulation.initial_state.x_range=[-20000,0]",), "simulation.initial_state.x_range"),
         (("ppo.minibatch_size=100000000",), "ppo.minibatch_size"),
         (("threads=0",), "threads=0"),
@@ -235,8 +238,9 @@ def test_malformed_device_is_refused(device):
         load(f"device={device}")
 
 
-SCHEMAS = [TaskConfig, RewardConfig, SimulationConfig, ManeuverConfig, InitialStateConfig, AgentConfig, PPOConfig,
-           MethodConfig, EvaluationConfig, CurriculumConfig, TrainConfig, EvaluateConfig]
+SCHEMAS = [TaskConfig, RewardConfig, SimulationConfig, ToleranceConfig, LimitsConfig, ManeuverConfig,
+           InitialStateConfig, AgentConfig, PPOConfig, MethodConfig, EvaluationConfig, CurriculumConfig, TrainConfig,
+           EvaluateConfig]
 
 
 @pytest.mark.parametrize("schema", SCHEMAS, ids=lambda schema: schema.__name__)
@@ -263,17 +267,19 @@ def test_every_task_value_comes_from_conf():
     is left to its own default."""
     base = load("task=curved", "reward=both")
     changed = load("task=curved", "radius=700", "speed=30", "task.turn_direction=-1", "reward=switch",
-                   "reward.use_continuous_action=false", "reward.use_position=false", "reward.c1=21", "reward.c2=-21",
-                   "reward.c3=-11", "reward.c4=-0.2", "reward.c5=-0.02", "reward.c6=2e-4", "reward.c7=0.6",
-                   "reward.c8=2e-5", "reward.gamma=0.98", "reward.switch_cost=0.2",
+                   "reward.use_continuous_action=false", "reward.use_position=false", "reward.success=21",
+                   "reward.out_of_airspace=-21", "reward.budget_exhausted=-11", "reward.action_change=-0.2",
+                   "reward.action_hold=-0.02", "reward.distance_weight=2e-4", "reward.heading_weight=0.6",
+                   "reward.altitude_weight=2e-5", "reward.gamma=0.98", "reward.switch_cost=0.2",
                    "simulation.integration_step=0.05", "simulation.decision_period=2.0",
                    "simulation.max_decisions=150", "simulation.airspace.x_min=-11000", "simulation.airspace.x_max=9000",
                    "simulation.airspace.y_min=-9000", "simulation.airspace.y_max=11000",
                    "simulation.airspace.z_min=-100", "simulation.airspace.z_max=6000",
-                   "simulation.distance_tolerance=900", "simulation.altitude_tolerance=150",
-                   "simulation.heading_tolerance_deg=20", "simulation.min_speed=90", "simulation.max_speed=260",
-                   "simulation.max_flight_path_angle_deg=25", "simulation.maneuvers.turn_load_factor=2.5",
-                   "simulation.maneuvers.pull_up_load_factor=2.5", "simulation.maneuvers.push_over_load_factor=-0.5",
+                   "simulation.tolerance.distance=900", "simulation.tolerance.altitude=150",
+                   "simulation.tolerance.heading_deg=20", "simulation.limits.min_speed=90",
+                   "simulation.limits.max_speed=260", "simulation.limits.max_flight_path_angle_deg=25",
+                   "simulation.maneuvers.turn=2.5", "simulation.maneuvers.pull_up=2.5",
+                   "simulation.maneuvers.push_over=-0.5",
                    "simulation.maneuvers.acceleration=0.2", "simulation.maneuvers.deceleration=0.25",
                    "simulation.initial_state.x_range=[-8000,6000]", "simulation.initial_state.y_range=[-8000,8000]",
                    "simulation.initial_state.z_range=[100,4000]", "simulation.initial_state.speed_range=[180,210]",
@@ -285,24 +291,26 @@ def test_every_task_value_comes_from_conf():
                      for cfg in (base, changed))
     same = {path for path in first if first[path] == second[path]}
     # The irregular task's three values are unused by a curved destination: compare them on the irregular task.
-    unused_by_curved = {"destination.change_probability", "destination.speed_range", "destination.max_turn_rate"}
-    assert same == {"simulation.gravity", "destination.start", "destination.kind"} | unused_by_curved
+    unused_by_curved = {"destination.change_probability", "destination.speed_range", "destination.max_turn_rate_deg"}
+    assert same == {"simulation.gravity", "destination.start", "destination.name"} | unused_by_curved
     destination, plain = (to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation).destination
                           for cfg in (irregular, plain_irregular))
-    for name in ("change_probability", "speed_range", "max_turn_rate"):
+    for name in ("change_probability", "speed_range", "max_turn_rate_deg"):
         assert None is not getattr(destination, name) != getattr(plain, name) is not None, name
 
 
 def test_records_convert_units_and_types():
     cfg = load("task=irregular")
     params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation)
-    assert params.destination.kind is MotionKind.IRREGULAR
-    assert params.destination.max_turn_rate == pytest.approx(math.radians(cfg.task.max_turn_rate_deg))
-    assert params.simulation.limits.max_flight_path_angle == pytest.approx(
-        math.radians(cfg.simulation.max_flight_path_angle_deg))
+    assert params.destination.name is MotionKind.IRREGULAR
+    assert params.destination.max_turn_rate_deg == cfg.task.max_turn_rate_deg
+    assert params.destination.max_turn_rate == math.radians(cfg.task.max_turn_rate_deg)  # the radians used
+    assert params.simulation.limits.max_flight_path_angle == math.radians(
+        cfg.simulation.limits.max_flight_path_angle_deg)
+    assert params.simulation.tolerance.heading == math.radians(cfg.simulation.tolerance.heading_deg)
     assert params.initial_state.x_range == tuple(cfg.simulation.initial_state.x_range)
     assert params.compile is cfg.simulation.compile
-    assert params.reward.success == cfg.reward.c1 and params.reward.altitude_weight == cfg.reward.c8
+    assert params.reward.success == cfg.reward.success and params.reward.altitude_weight == cfg.reward.altitude_weight
 
 
 #: The only record fields with a default, because conf/ holds no value for them.
@@ -360,10 +368,10 @@ def test_a_record_default_is_found():
 
 
 def test_a_destination_needs_the_fields_its_kind_reads():
-    with pytest.raises(ValueError, match=r"^DestinationMotion radius=None is not allowed: kind=curved needs speed, "
+    with pytest.raises(ValueError, match=r"^DestinationMotion radius=None is not allowed: name=curved needs speed, "
                                          r"radius, turn_direction$"):
-        DestinationMotion(kind=MotionKind.CURVED, speed=20.0)
-    assert DestinationMotion(kind=MotionKind.FIXED).speed is None
+        DestinationMotion(name=MotionKind.CURVED, speed=20.0)
+    assert DestinationMotion(name=MotionKind.FIXED).speed is None
 
 
 def test_a_task_value_its_task_needs_is_required():
@@ -380,3 +388,32 @@ def test_collector_workers_must_divide_the_envs():
         load("ppo.collector_workers=2", "resume=runs/some_run")
     assert load("ppo.collector_workers=2", "curriculum.enabled=false").ppo.collector_workers == 2
     assert load("ppo.collector_workers=2").curriculum.enabled  # the workers' envs follow the curriculum too
+
+
+def _unread(record_type: type, values: dict, prefix: str = "") -> set[str]:
+    """The keys of a config section (nested sections too) that name no field of ``record_type``."""
+    hints = typing.get_type_hints(record_type)
+    names = {spec.name for spec in dataclasses.fields(record_type)}
+    unread = {f"{prefix}{key}" for key in values if key not in names}
+    for name in names & set(values):
+        if dataclasses.is_dataclass(hints[name]) and isinstance(values[name], dict):
+            unread |= _unread(hints[name], values[name], f"{prefix}{name}.")
+    return unread
+
+
+def test_every_key_of_the_task_sections_is_a_record_field_of_the_same_name():
+    """One name per value: the YAML key is the record field it sets (the converse of the test above), so the
+    records are built by name (agrl.config.records.build_record). The reward's ``name`` only picks the YAML."""
+    from omegaconf import OmegaConf
+
+    from agrl.core.reward import RewardParameters
+    from agrl.core.simulation import SimulationParameters
+
+    config = OmegaConf.to_container(compose_config("task=irregular"), resolve=True)
+    assert _unread(RewardParameters, config["reward"]) == {"name"}
+    assert _unread(DestinationMotion, config["task"]) == set()
+    simulation = config["simulation"]
+    # GuidanceParameters takes the simulation section's records and values; its simulation record the rest.
+    assert _unread(GuidanceParameters, simulation) == {"integration_step", "decision_period", "airspace", "tolerance",
+                                                       "limits"}
+    assert _unread(SimulationParameters, simulation) == {"max_decisions", "maneuvers", "initial_state", "compile"}

@@ -11,6 +11,7 @@ With that convention a positive bank makes ``psi`` decrease (equation 3's sign).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -59,7 +60,12 @@ class AircraftLimits:
 
     min_speed: float  # m/s
     max_speed: float  # m/s
-    max_flight_path_angle: float  # rad
+    max_flight_path_angle_deg: float  # degrees (the radians the simulator clamps to: :attr:`max_flight_path_angle`)
+
+    @property
+    def max_flight_path_angle(self) -> float:
+        """The flight-path angle limit in radians (``math.radians(max_flight_path_angle_deg)``)."""
+        return math.radians(self.max_flight_path_angle_deg)
 
 
 class ManeuverControls(NamedTuple):

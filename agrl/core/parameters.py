@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -25,25 +26,32 @@ class MotionKind(StrEnum):
 #: Fixed by the paper's setting and the same for every task, so ``conf/`` has no entry for it.
 DESTINATION_START = (0.0, 0.0, 0.0, 0.0)
 
-#: The :class:`DestinationMotion` fields each motion kind reads (the others stay None).
+#: The :class:`DestinationMotion` fields each task reads (the others stay None): the one list of them, which the
+#: task schema (``agrl.config``) checks and the command-line shorthands ``speed=``/``radius=`` are matched against.
 MOTION_FIELDS = {
     "fixed": (),
     "uniform": ("speed",),
     "curved": ("speed", "radius", "turn_direction"),
-    "irregular": ("change_probability", "speed_range", "max_turn_rate"),
+    "irregular": ("change_probability", "speed_range", "max_turn_rate_deg"),
 }
+
+
+def tasks_taking(field_name: str) -> list[str]:
+    """The tasks whose destination reads ``field_name`` (``tasks_taking("radius")`` -> ``["curved"]``)."""
+    return [task for task, names in MOTION_FIELDS.items() if field_name in names]
 
 
 @dataclass(frozen=True)
 class DestinationMotion:
     """How the destination moves (section 5.3), and where it starts (:data:`DESTINATION_START`).
 
-    The values are in ``conf/task/*.yaml``. Only ``kind`` is required: each kind reads its own
-    fields (:data:`MOTION_FIELDS`) and a task's YAML sets only those, so the others are None (a
-    fixed destination has no speed) rather than a made-up value; a kind's own fields must be given.
+    The values are in ``conf/task/*.yaml``, under the same names. Only ``name`` (the task, the kind of
+    motion) is required: each task reads its own fields (:data:`MOTION_FIELDS`) and a task's YAML sets only
+    those, so the others are None (a fixed destination has no speed) rather than a made-up value; a task's
+    own fields must be given.
     """
 
-    kind: MotionKind
+    name: MotionKind
     speed: float | None = None  # m/s (uniform, curved)
     radius: float | None = None  # m (curved)
     turn_direction: float | None = None  # +1 or -1 (curved)
@@ -51,27 +59,32 @@ class DestinationMotion:
     # irregular: re-drawn at each decision with this probability, within these bounds
     change_probability: float | None = None
     speed_range: tuple[float, float] | None = None  # m/s
-    max_turn_rate: float | None = None  # rad/s
+    max_turn_rate_deg: float | None = None  # deg/s (the radians the simulator draws in: :attr:`max_turn_rate`)
 
     def __post_init__(self) -> None:
-        kind = MotionKind(self.kind)
+        kind = MotionKind(self.name)
         missing = [name for name in MOTION_FIELDS[kind.value] if getattr(self, name) is None]
         if missing:
-            raise ValueError(f"DestinationMotion {missing[0]}=None is not allowed: kind={kind.value} needs "
+            raise ValueError(f"DestinationMotion {missing[0]}=None is not allowed: name={kind.value} needs "
                              f"{', '.join(MOTION_FIELDS[kind.value])}")
+
+    @property
+    def max_turn_rate(self) -> float | None:
+        """The irregular destination's largest turn rate in rad/s (``math.radians(max_turn_rate_deg)``)."""
+        return None if self.max_turn_rate_deg is None else math.radians(self.max_turn_rate_deg)
 
     def initial_motion(
         self, count: int, generator: torch.Generator | None, device: torch.device
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Initial (speed m/s, turn rate rad/s) for ``count`` destinations."""
-        if self.kind is MotionKind.IRREGULAR:
+        if self.name is MotionKind.IRREGULAR:
             low, high = self.speed_range
             speed = low + (high - low) * torch.rand(count, generator=generator, device=device)
             turn_rate = self.max_turn_rate * (2 * torch.rand(count, generator=generator, device=device) - 1)
             return speed, turn_rate
-        speed = {MotionKind.FIXED: 0.0}.get(self.kind, self.speed)
+        speed = {MotionKind.FIXED: 0.0}.get(self.name, self.speed)
         turn_rate = (
-            curved_turn_rate(self.speed, self.radius, self.turn_direction) if self.kind is MotionKind.CURVED else 0.0
+            curved_turn_rate(self.speed, self.radius, self.turn_direction) if self.name is MotionKind.CURVED else 0.0
         )
         return torch.full((count,), speed, device=device), torch.full((count,), turn_rate, device=device)
 

@@ -6,6 +6,7 @@ TensorDict and be counted cheaply.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -41,7 +42,12 @@ class SuccessTolerance:
 
     distance: float  # d_e, m (horizontal)
     altitude: float  # z_e, m
-    heading: float  # psi_e, rad
+    heading_deg: float  # psi_e, degrees (the radians the simulator compares with: :attr:`heading`)
+
+    @property
+    def heading(self) -> float:
+        """psi_e in radians (``math.radians(heading_deg)``)."""
+        return math.radians(self.heading_deg)
 
 
 def is_success(

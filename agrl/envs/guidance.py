@@ -15,6 +15,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
+from agrl.config.task import require_max_decisions
 from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.destinations import redraw_irregular_motion
 from agrl.core.initial_states import sample_initial_aircraft
@@ -79,8 +80,7 @@ class GuidanceEnv(EnvBase):
         self.observation_kind = observation
         self._observation_size = observation_size(observation)  # one-line error on an unknown kind
         self._observation = observation_function(observation)
-        if self.params.max_decisions < 1:
-            raise ValueError(f"max_decisions={self.params.max_decisions} is not allowed: an integer >= 1")
+        require_max_decisions(self.params.max_decisions)  # the schema's check: a record may be built without it
         self.simulator = DecisionSimulator(
             self.params.simulation, self.params.maneuvers.controls(self.device), compile=self.params.compile
         )
@@ -254,7 +254,7 @@ class GuidanceEnv(EnvBase):
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
         destination_speed = tensordict["destination_speed"]
         destination_turn_rate = tensordict["destination_turn_rate"]
-        if self.params.destination.kind is MotionKind.IRREGULAR:
+        if self.params.destination.name is MotionKind.IRREGULAR:
             motion = self.params.destination
             destination_speed, destination_turn_rate = redraw_irregular_motion(
                 destination_speed, destination_turn_rate, motion.change_probability,

@@ -8,21 +8,19 @@ gymnasium environments can use the paper's MDP::
     obs, info = env.reset(seed=0)
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
 
-One row runs in Python floats (:mod:`agrl.rows`): the decision is
-:func:`agrl.reference.reference_decision` (the pure-Python form of the batched simulator,
-tested equal to it), the observation and reward are :mod:`agrl.rows`' one-row forms of
-:mod:`agrl.core`'s (tested equal to them). Resets, seeding and the irregular destination's
-random redraws are those of a one-row :class:`agrl.envs.GuidanceEnv` (same functions, same
-generator), so from the same seed or scenario and the same actions the two environments fly
-the same episodes (``tests/envs/test_gym.py`` states the float tolerance: the batched env runs
-float32, this one float64). The many-environment form is :mod:`agrl.envs.gym_vector`
-(``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``). The task parameters are
-composed from ``conf/`` exactly as ``python -m agrl.train`` composes them (Hydra's compose API),
+One row runs in Python floats: the decision is :func:`agrl.reference.reference_decision` (the pure-Python form
+of the batched simulator, tested equal to it), the observation and reward are :mod:`agrl.rows`' one-row forms of
+:mod:`agrl.core`'s (tested equal to them). Resets, seeding and the irregular destination's random redraws are
+those of a one-row :class:`agrl.envs.GuidanceEnv` (same functions, same generator), so from the same seed or
+scenario and the same actions the two environments fly the same episodes (``tests/envs/test_gym.py`` states the
+float tolerance: the batched env runs float32, this one float64). The many-environment form is
+:mod:`agrl.envs.gym_vector` (``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``). The task
+parameters are composed from ``conf/`` exactly as ``python -m agrl.train`` composes them (Hydra's compose API),
 so the YAML holds every default once.
 
-Episodes end with ``terminated=True`` on success, on leaving the airspace and
-when the decision budget is spent: the budget is part of the paper's MDP (it pays
-``c3``), not a time limit, so ``truncated`` is always False.
+Episodes end with ``terminated=True`` on success, on leaving the airspace and when the decision budget is spent:
+the budget is part of the paper's MDP (it pays ``reward.budget_exhausted``, c3), not a time limit, so
+``truncated`` is always False.
 """
 
 from __future__ import annotations
@@ -40,12 +38,11 @@ import numpy as np
 import torch
 from gymnasium import spaces
 
-from agrl.config import TASK_PARAMETERS, ConfigError, config_options, one_line, tasks_taking
-from agrl.config import guidance_parameters as composed_guidance_parameters
+from agrl.config import ConfigError, config_options, guidance_parameters, one_line
 from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.destinations import redraw_irregular_motion
 from agrl.core.observation import OBSERVATION_FEATURES, OBSERVATION_SIZE
-from agrl.core.parameters import GuidanceParameters, MotionKind
+from agrl.core.parameters import MOTION_FIELDS, GuidanceParameters, MotionKind, tasks_taking
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import NUM_ACTIONS, SCENARIO_KEYS, GuidanceEnv
 from agrl.reference import reference_decision
@@ -70,17 +67,16 @@ def checked_seed(seed: Any, allowed: str = "None or an integer in [0, 2**64 - 1]
     return None if seed is None else int(seed)
 
 
-def _finite_positive(name: str, value: Any, task: str, what: str) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        number = math.nan
-    if isinstance(value, bool) or not (math.isfinite(number) and number > 0):
-        _fail(name, value, f"task={task} needs a finite {what} > 0")
-    return number
+def _number(name: str, value: Any, what: str, integral: bool = False) -> float:
+    """A keyword argument's type (a Python value is not an override yet): a real number (an integer if
+    ``integral``), else ``ValueError`` naming it. Its range is the schema's (:mod:`agrl.config.task`)."""
+    real = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+    if not real or (integral and not (math.isfinite(value) and value == int(value))):
+        _fail(name, value, what)
+    return int(value) if integral else float(value)
 
 
-def guidance_parameters(
+def gym_parameters(
     task: str = "fixed",
     speed: float | None = None,
     radius: float | None = None,
@@ -89,10 +85,12 @@ def guidance_parameters(
     reward: str | None = None,
     compile: bool = False,
 ) -> GuidanceParameters:
-    """The :class:`GuidanceParameters` that ``python -m agrl.train task=... reward=...`` would use.
+    """The :class:`GuidanceParameters` of ``gymnasium.make("agrl/Guidance-v0", **kwargs)``'s keyword arguments: those
+    ``python -m agrl.train task=... reward=...`` would use.
 
-    Composed from ``conf/`` with Hydra's compose API (:func:`agrl.config.compose_config`), so every
-    default is the YAML's own. Raises ``ValueError`` (one line) naming a bad value and what is allowed.
+    Composed from ``conf/`` by :func:`agrl.config.guidance_parameters` (Hydra's compose API and the schemas'
+    checks), so every default is the YAML's own. Raises ``ValueError`` (one line) naming a bad value and what
+    is allowed: a keyword's type is checked here (a Python value is no override yet), its range by the schema.
     """
     tasks, rewards = config_options("task"), config_options("reward")
     if task not in tasks:
@@ -106,21 +104,18 @@ def guidance_parameters(
         overrides.append(f"reward={reward}")
     given = {"speed": speed, "radius": radius, "turn_direction": turn_direction}
     for name, value in given.items():
-        if value is not None and name not in TASK_PARAMETERS.get(task, ()):
+        if value is not None and name not in MOTION_FIELDS[task]:
             _fail(name, value, f"task={task} has no destination {name} (only task={' or '.join(tasks_taking(name))})")
     if speed is not None:
-        overrides.append(f"speed={_finite_positive('speed', speed, task, 'destination speed in m/s')!r}")
+        overrides.append(f"speed={_number('speed', speed, f'task={task} needs a destination speed in m/s')!r}")
     if radius is not None:
-        overrides.append(f"radius={_finite_positive('radius', radius, task, 'turning radius in m')!r}")
+        overrides.append(f"radius={_number('radius', radius, f'task={task} needs a turning radius in m')!r}")
     if turn_direction is not None:
-        if isinstance(turn_direction, bool) or turn_direction not in (-1, 1):
-            _fail("turn_direction", turn_direction, "+1 (counter-clockwise) or -1 (clockwise)")
-        overrides.append(f"task.turn_direction={int(turn_direction)}")
+        direction = _number("turn_direction", turn_direction, "+1 (counter-clockwise) or -1 (clockwise)", True)
+        overrides.append(f"task.turn_direction={direction}")
     if max_decisions is not None:
-        integral = isinstance(max_decisions, (int, np.integer)) and not isinstance(max_decisions, bool)
-        if not integral or max_decisions < 1:
-            _fail("max_decisions", max_decisions, "an integer >= 1 (decisions of 3 s per episode)")
-        overrides.append(f"simulation.max_decisions={int(max_decisions)}")
+        budget = _number("max_decisions", max_decisions, "an integer >= 1 (decisions of 3 s per episode)", True)
+        overrides.append(f"simulation.max_decisions={budget}")
     return _composed_parameters(tuple(overrides), compile)
 
 
@@ -128,7 +123,7 @@ def guidance_parameters(
 def _composed_parameters(overrides: tuple[str, ...], compile: bool) -> GuidanceParameters:
     # Composing takes a few tenths of a second; vector envs and SB3's make_vec_env ask for the same task often.
     try:
-        return composed_guidance_parameters(*overrides, compile=compile)
+        return guidance_parameters(*overrides, compile=compile)
     except ConfigError as error:
         raise ValueError(str(error)) from None
 
@@ -276,7 +271,7 @@ class GuidanceGymEnv(gymnasium.Env):
         if render_mode == "human" and not _has_display():
             _fail("render_mode", render_mode, "'human' needs a display (DISPLAY/WAYLAND_DISPLAY is not set): use "
                   "'rgb_array' and show or record the frames")
-        self.params = guidance_parameters(
+        self.params = gym_parameters(
             task=task, speed=speed, radius=radius, turn_direction=turn_direction,
             max_decisions=max_decisions, reward=reward, compile=compile,
         )
@@ -288,7 +283,7 @@ class GuidanceGymEnv(gymnasium.Env):
         low, high = observation_bounds(self.params)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self.maneuver_names = MANEUVER_NAMES
-        self._irregular = self.params.destination.kind is MotionKind.IRREGULAR
+        self._irregular = self.params.destination.name is MotionKind.IRREGULAR
         # The destination's start and (but for irregular motion) its speed and turn rate, rounded to float32
         # as GuidanceEnv holds them.
         self._start = tuple(torch.tensor(self.params.destination.start).tolist())
@@ -410,7 +405,7 @@ class GuidanceGymEnv(gymnasium.Env):
             raise RuntimeError("agrl/Guidance-v0: call reset() before render()")
         from agrl.plots import episode_frame
 
-        title = f"{self.params.destination.kind.value}  decision {self._step_count}/{self.params.max_decisions}"
+        title = f"{self.params.destination.name.value}  decision {self._step_count}/{self.params.max_decisions}"
         frame = episode_frame(self._aircraft_path, self._destination_path, Outcome(self._outcome),
                               self.params.simulation.airspace, f"{title}  return {self._episode_return:.2f}")
         if self.render_mode == "rgb_array":

@@ -36,7 +36,7 @@ from gymnasium.vector.utils import batch_space
 
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import NUM_ACTIONS, SCENARIO_KEYS, GuidanceEnv
-from agrl.envs.gym import _fail, checked_seed, guidance_parameters, observation_bounds, scenario_reset
+from agrl.envs.gym import _fail, checked_seed, gym_parameters, observation_bounds, scenario_reset
 
 #: Entries of the TorchRL state that make a row's state (what a reset replaces).
 _ROW_KEYS = (*SCENARIO_KEYS, "last_action", "action_before_last", "step_count", "episode_return",
@@ -78,7 +78,7 @@ class GuidanceVectorEnv(VectorEnv):
         if modes.get(getattr(autoreset_mode, "value", autoreset_mode)) is None:
             _fail("autoreset_mode", autoreset_mode, f"one of {', '.join(modes)}")
         self.metadata = {**self.metadata, "autoreset_mode": modes[getattr(autoreset_mode, "value", autoreset_mode)]}
-        self.params = guidance_parameters(
+        self.params = gym_parameters(
             task=task, speed=speed, radius=radius, turn_direction=turn_direction,
             max_decisions=max_decisions, reward=reward, compile=compile,
         )

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-import agrl.config  # noqa: F401  (registers the resolver used in saved configs)
+from agrl.config import upgraded_config  # (importing agrl.config registers the resolver of saved configs)
 from agrl.report.columns import (
     CURVE_COLUMNS,
     DATA_FILES,
@@ -82,9 +82,10 @@ def _load_config(folder: Path) -> dict | None:
         if path.is_file():
             config = OmegaConf.load(path)
             try:
-                return OmegaConf.to_container(config, resolve=True)
+                values = OmegaConf.to_container(config, resolve=True)
             except Exception:  # an older config whose interpolations no longer resolve: its plain values
-                return OmegaConf.to_container(config, resolve=False)
+                values = OmegaConf.to_container(config, resolve=False)
+            return upgraded_config(values) if isinstance(values, dict) else values  # today's keys
     return None
 
 

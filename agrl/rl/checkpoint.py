@@ -33,6 +33,7 @@ from tensordict import TensorDict
 from tensordict._reductions import _make_td
 
 from agrl.baselines import SHIPPED_AGENTS, shipped_agent_names
+from agrl.config import upgraded_config
 
 FORMAT_VERSION = 2
 #: The only non-plain objects a format-1 checkpoint holds (checked with
@@ -184,6 +185,8 @@ def load_checkpoint(path: str | Path, required: tuple[str, ...] = ("actor",)) ->
     missing = [key for key in required if key not in payload]
     if missing:
         raise CheckpointError(f"{path}: checkpoint lacks {', '.join(missing)}")
+    if isinstance(payload.get("config"), dict):  # a checkpoint written before the keys' renaming has the old ones
+        payload["config"] = upgraded_config(payload["config"])
     return payload
 
 

@@ -15,6 +15,7 @@ import pytest
 import torch
 
 from agrl.baselines import BASELINE_FILE, SHIPPED_AGENTS
+from agrl.config import upgraded_config
 from agrl.rl.metrics import flatten_config
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -33,7 +34,8 @@ def _recipe(config: dict) -> dict:
 
 
 def _saved(path: Path) -> dict:
-    return _recipe(torch.load(path, weights_only=True)["config"])
+    """The file's saved config, with today's keys (the shipped files predate the keys' renaming)."""
+    return _recipe(upgraded_config(torch.load(path, weights_only=True)["config"]))
 
 
 def _differences(composed: dict, saved: dict) -> dict:

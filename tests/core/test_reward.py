@@ -211,7 +211,7 @@ def run_episodes(params: GuidanceParameters, num_envs: int, seed: int):
 )
 def test_shaping_telescopes_over_an_episode(kind, reward_changes, paper_parameters):
     reward = dataclasses.replace(paper_parameters.reward, **reward_changes)
-    destination = DestinationMotion(kind=kind, speed=20.0, radius=1_000.0, turn_direction=1.0)
+    destination = DestinationMotion(name=kind, speed=20.0, radius=1_000.0, turn_direction=1.0)
     params = dataclasses.replace(paper_parameters, max_decisions=12, reward=reward, destination=destination)
     num_envs = 4
     start, records = run_episodes(params, num_envs, seed=11)

@@ -14,7 +14,7 @@ from agrl.core.simulation import DecisionSimulator
 from agrl.core.termination import Outcome, SuccessTolerance, is_outside_airspace, is_success
 from agrl.envs import GuidanceEnv
 
-TOLERANCE = SuccessTolerance(distance=1_000.0, altitude=200.0, heading=math.radians(30))
+TOLERANCE = SuccessTolerance(distance=1_000.0, altitude=200.0, heading_deg=30.0)
 
 
 def success(aircraft, destination, tolerance=TOLERANCE) -> bool:
@@ -49,14 +49,14 @@ def test_is_success_heading_tolerance_and_wrap_around():
     assert not success((0.0, 0.0, 0.0, math.radians(41)), dest)
     assert not success((0.0, 0.0, 0.0, math.radians(-21)), dest)
     # 179 deg and -179 deg are 2 deg apart.
-    narrow = SuccessTolerance(distance=1_000.0, altitude=200.0, heading=math.radians(5))
+    narrow = SuccessTolerance(distance=1_000.0, altitude=200.0, heading_deg=5.0)
     assert success((0.0, 0.0, 0.0, math.radians(179)), (0.0, 0.0, 0.0, math.radians(-179)), narrow)
     assert success((0.0, 0.0, 0.0, math.radians(-179)), (0.0, 0.0, 0.0, math.radians(179)), narrow)
     # Unwrapped headings (several turns apart) are compared modulo 2 pi.
     assert success(
         (0.0, 0.0, 0.0, math.radians(179) + 4 * math.pi), (0.0, 0.0, 0.0, math.radians(-179)), narrow
     )
-    tight = SuccessTolerance(distance=1_000.0, altitude=200.0, heading=math.radians(1))
+    tight = SuccessTolerance(distance=1_000.0, altitude=200.0, heading_deg=1.0)
     assert not success((0.0, 0.0, 0.0, math.radians(179)), (0.0, 0.0, 0.0, math.radians(-179)), tight)
     # Opposite headings never succeed, whatever the position.
     assert not success((0.0, 0.0, 0.0, math.pi), (0.0, 0.0, 0.0, 0.0))
@@ -92,7 +92,7 @@ def test_is_outside_airspace_each_wall(paper_parameters):
 def test_success_is_caught_when_passing_through_between_decisions(paper_parameters):
     # 250 m/s for 3 s = 750 m per decision: from x = -400 m to x = +350 m. Both decision boundaries are
     # outside d_e = 300 m, but the straight path crosses the destination mid-decision.
-    tolerance = SuccessTolerance(distance=300.0, altitude=200.0, heading=math.radians(30))
+    tolerance = SuccessTolerance(distance=300.0, altitude=200.0, heading_deg=30.0)
     params = dataclasses.replace(paper_parameters.simulation, tolerance=tolerance)
     simulator = DecisionSimulator(params, paper_parameters.maneuvers.controls(), compile=False)
     aircraft = torch.tensor([[-400.0, 0.0, 1_000.0, 250.0, 0.0, 0.0, 0.0]])

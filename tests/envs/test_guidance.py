@@ -28,7 +28,7 @@ def make_params(paper_parameters, compose_parameters):
         if kind is MotionKind.IRREGULAR:
             destination = irregular
         else:
-            destination = DestinationMotion(kind=kind, speed=20.0, radius=500.0, turn_direction=1.0)
+            destination = DestinationMotion(name=kind, speed=20.0, radius=500.0, turn_direction=1.0)
         return dataclasses.replace(paper_parameters, destination=destination, **changes)
 
     return make

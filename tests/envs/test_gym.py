@@ -23,7 +23,7 @@ from hydra import compose, initialize_config_dir
 import agrl
 from agrl.config import load_config, to_guidance_parameters
 from agrl.core.observation import OBSERVATION_SIZE, policy_observation
-from agrl.envs.gym import ENV_ID, GuidanceGymEnv, guidance_parameters
+from agrl.envs.gym import ENV_ID, GuidanceGymEnv, gym_parameters
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 
@@ -69,7 +69,7 @@ def test_spaces_and_env_checker(kwargs):
     unwrapped = env.unwrapped
     assert isinstance(unwrapped, GuidanceGymEnv)
     assert unwrapped.env.batch_size == (1,) and not unwrapped.env.simulator.compiled
-    assert unwrapped.params.destination.kind.value == kwargs["task"]
+    assert unwrapped.params.destination.name.value == kwargs["task"]
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # gymnasium's checker reports problems as warnings
         check_env(unwrapped)
@@ -97,7 +97,7 @@ def test_parameters_equal_the_training_defaults(task, reward):
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = load_config(compose(config_name="config", overrides=[f"task={task}", f"reward={reward}"]))
     expected = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, compile=False)
-    assert guidance_parameters(task=task, reward=reward) == expected
+    assert gym_parameters(task=task, reward=reward) == expected
 
 
 # ---------------------------------------------------------------------------- other libraries can train on it

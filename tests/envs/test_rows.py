@@ -44,7 +44,7 @@ def test_observation_row_equals_policy_observation(paper_parameters):
 
 def test_observation_row_follows_a_different_airspace():
     airspace = Airspace(x_min=-3_000.0, x_max=5_000.0, y_min=-1_000.0, y_max=2_000.0, z_min=100.0, z_max=900.0)
-    limits = AircraftLimits(min_speed=80.0, max_speed=300.0, max_flight_path_angle=0.3)
+    limits = AircraftLimits(min_speed=80.0, max_speed=300.0, max_flight_path_angle_deg=17.0)
     aircraft, destination, last_action, _ = random_states(50, seed=1)
     expected = policy_observation(aircraft, destination, last_action, airspace, limits)
     for index in range(50):
