@@ -31,7 +31,7 @@ import dataclasses
 import json
 import math
 import threading
-from collections.abc import Mapping, Set
+from collections.abc import Mapping, Sequence, Set
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +43,7 @@ from agrl.config import one_line
 from agrl.core.aircraft import MANEUVER_NAMES, AircraftLimits
 from agrl.core.observation import policy_observation
 from agrl.core.termination import Airspace
+from agrl.plan import Plan, plan, task_parameters
 from agrl.rows import observation_row
 
 NUM_MANEUVERS = len(MANEUVER_NAMES)
@@ -301,6 +302,13 @@ class Guide:
                 return self._runner(*inputs).numpy()
             observation = policy_observation(*inputs, self.airspace, self.limits)
             return self._batched(observation).argmax(-1).numpy()
+
+    def plan(self, aircraft_state, destination_state=None, task: Sequence[str] = (), last_action: int = 0) -> Plan:
+        """The instructions this agent gives from a start, in order with their times, with the trajectory and the
+        outcome (:func:`agrl.plan.plan`): ``aircraft_state`` (x, y, z, v, theta, psi, phi), ``destination_state``
+        (x, y, z, psi; default the task's start), ``task`` overrides as ``python -m agrl.evaluate`` takes them
+        (``["task=uniform", "speed=50"]``; default the agent's own task)."""
+        return plan(self, task_parameters(self, task), aircraft_state, destination_state, last_action)
 
     def __repr__(self) -> str:
         return f"Guide(kind={self.kind!r}, source={self.source!r})"

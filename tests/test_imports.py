@@ -29,6 +29,7 @@ LAYERS = {
     "agrl.rl": 3,  # actor-critic, PPO trainer, checkpoints, evaluation, policy reuse
     "agrl.train": 4, "agrl.evaluate": 4, "agrl.export": 4, "agrl.report": 4,  # entry points
     "agrl.guide": 4, "agrl.distill": 4, "agrl.cli": 4,  # the entry points' command-line check
+    "agrl.plan": 4,  # the instruction plan of a guide (python -m agrl.plan)
 }
 
 
