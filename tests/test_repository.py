@@ -131,3 +131,26 @@ def test_a_tree_over_the_limit_names_its_largest_file():
         f"docs/results/figures/largest.png, {MAX_FILE_BYTES + 5} bytes)"
     ]
     assert repository_violations(files[:3]) == []
+
+
+#: The most lines a module of agrl may have: a longer one does several jobs (split it by job).
+MAX_MODULE_LINES = 450
+
+
+def oversized_modules(package: Path) -> list[str]:
+    """``<path>: <n> lines (at most ...)`` for each module of ``package`` over :data:`MAX_MODULE_LINES`."""
+    return [f"{path.relative_to(package.parent)}: {count} lines (at most {MAX_MODULE_LINES})"
+            for path in sorted(package.rglob("*.py"))
+            if (count := len(path.read_text().splitlines())) > MAX_MODULE_LINES]
+
+
+def test_no_module_of_agrl_is_over_the_line_limit():
+    assert oversized_modules(ROOT / "agrl") == []
+
+
+def test_an_oversized_module_is_named(tmp_path):
+    package = tmp_path / "agrl"
+    package.mkdir()
+    (package / "small.py").write_text("x = 1\n" * MAX_MODULE_LINES)
+    (package / "large.py").write_text("x = 1\n" * (MAX_MODULE_LINES + 1))
+    assert oversized_modules(package) == [f"agrl/large.py: {MAX_MODULE_LINES + 1} lines (at most {MAX_MODULE_LINES})"]
