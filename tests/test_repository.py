@@ -11,7 +11,6 @@ from __future__ import annotations
 import fnmatch
 import shutil
 import subprocess
-import warnings
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -28,24 +27,13 @@ LARGE_FILES_ALLOWED = (
     "docs/results/figures/*",
     "docs/*.png", "docs/*.svg", "docs/*.jpg", "docs/*.gif",
 )
-#: Raw run outputs that an earlier version tracked and that are being removed from git in steps (a submission has
-#: a size limit, so they cannot all go at once). Files under these folders are exempt from every check, and the
-#: test reports how many bytes are still there. Remove each folder from this tuple in the commit that untracks the
-#: last of its files (test_every_folder_being_removed_still_holds_tracked_files says when): it must end empty.
-BEING_REMOVED = (
-    "docs/results/runs/",
-)
-
-
-def being_removed(path: str) -> bool:
-    return path.startswith(BEING_REMOVED)
 
 
 def repository_violations(files: Iterable[tuple[str, int]]) -> list[str]:
     """One line per problem in a list of tracked files (path relative to the repository root, size in bytes):
     a TensorBoard event file, a file over :data:`MAX_FILE_BYTES` outside :data:`LARGE_FILES_ALLOWED`, a tree over
-    :data:`MAX_TREE_BYTES`. Files under :data:`BEING_REMOVED` are left out."""
-    files = [(path, size) for path, size in files if not being_removed(path)]
+    :data:`MAX_TREE_BYTES`."""
+    files = list(files)
     problems = []
     for path, size in files:
         if ".tfevents." in Path(path).name:
@@ -88,16 +76,6 @@ def files() -> list[tuple[str, int]]:
 def test_no_run_outputs_or_large_files_are_tracked(files):
     problems = repository_violations(files)
     assert not problems, problems[0] + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else "")
-    remaining = [size for path, size in files if being_removed(path)]
-    if remaining:
-        warnings.warn(f"{len(remaining)} tracked files, {sum(remaining)} bytes, are still in BEING_REMOVED "
-                      f"({', '.join(BEING_REMOVED)}): raw outputs to untrack", stacklevel=1)
-
-
-def test_every_folder_being_removed_still_holds_tracked_files(files):
-    emptied = [folder for folder in BEING_REMOVED if not any(path.startswith(folder) for path, _ in files)]
-    assert not emptied, (f"{emptied[0]} holds no tracked file any more: remove it from BEING_REMOVED in "
-                         "tests/test_repository.py")
 
 
 def test_each_violation_is_one_line_naming_the_file():
@@ -108,7 +86,6 @@ def test_each_violation_is_one_line_naming_the_file():
         ("docs/results/data/episodes.csv", MAX_FILE_BYTES + 1),
         ("agrl/baselines/fixed_baseline.pt", MAX_FILE_BYTES + 1),  # a shipped agent: allowed
         ("docs/results/figures/moving.png", MAX_FILE_BYTES + 1),  # a doc figure: allowed
-        ("docs/results/runs/old/events.out.tfevents.1.host", 10 * MAX_TREE_BYTES),  # being removed: left out
     ]
     problems = repository_violations(files)
     assert problems == [
