@@ -38,6 +38,7 @@ from agrl.rl.reuse import (
 )
 
 BUDGET = 20  # decisions per episode: keeps the eager simulation cheap
+INTEGRATION_STEP = 0.1  # s: 30 integration steps per 3 s decision (conf's 0.02 s: 150), as in the tiny runs
 NUM_ENVS = 4
 STEP = 150.0  # m the 50 m/s destination moves in one 3 s decision
 START = ((-6_000.0, -4_000.0), 0.0, 100.0)  # aircraft start: x range, y, z (m); heading +x, 200 m/s
@@ -53,12 +54,13 @@ ALGORITHM_1 = {"initial_selection_factor": 1.0, "selection_decay": 0.0, "candida
 
 def guidance_task(compose_parameters, kind: MotionKind = MotionKind.UNIFORM, start=START,
                   destination_start=(0.0, 0.0, 0.0, 0.0)) -> GuidanceParameters:
-    """conf's task ``kind`` with the paper's reward, the destination at 50 m/s (curved: conf's 1 km counter-clockwise
-    circle; irregular: conf/task/irregular.yaml's redraws), starting at ``destination_start``, the aircraft in the
-    hand-built ``start`` box and a budget of BUDGET."""
+    """conf's task ``kind`` with the paper's reward and INTEGRATION_STEP, the destination at 50 m/s (curved: conf's
+    1 km counter-clockwise circle; irregular: conf/task/irregular.yaml's redraws), starting at ``destination_start``,
+    the aircraft in the hand-built ``start`` box and a budget of BUDGET."""
     (x_low, x_high), y, z = start
     speed = ("speed=50",) if kind in (MotionKind.UNIFORM, MotionKind.CURVED) else ()  # the tasks that use it
-    task = compose_parameters(f"task={kind.value}", *speed, "reward=both")
+    task = compose_parameters(f"task={kind.value}", *speed, "reward=both",
+                              f"simulation.integration_step={INTEGRATION_STEP}")
     return dataclasses.replace(
         task,
         destination=dataclasses.replace(task.destination, start=destination_start),
