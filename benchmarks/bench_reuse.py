@@ -108,7 +108,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     overrides = list(args.overrides or ["task=uniform", "speed=50"])
     if args.quick:
         overrides += ["ppo.num_envs=64", "ppo.steps_per_env=16", "eval.periodic_episodes=16",
-                      "simulation.compile=false", "simulation.integration_step=0.1"]
+                      "simulation.compile=false", "simulation.integration_step=0.1", "simulation.max_decisions=30"]
     args.overrides = [*overrides, "method=reuse", "progress=false"]
     return args
 

@@ -19,11 +19,19 @@ REPO = Path(__file__).resolve().parents[1]
 REQUIRED = {"name", "value", "unit"}
 
 
+#: ``python -m benchmarks.bench_peer`` at a tiny geometry, up to its list of trainers.
+PEER_RUN = ("benchmarks.bench_peer", "--num-envs", "16", "--steps", "8", "--iterations", "2", "--minibatch", "64",
+            "--no-compile", "--threads", "1", "--trainers")
+#: {--trainers name: (its record's trainer, its ratio's name or None for the reference, SB3)}.
+PEER_TRAINERS = {"agrl": ("agrl", "ratio_agrl_over_sb3"),
+                 "agrl-compiled": ("agrl (compiled loss)", "ratio_agrl_compiled_over_sb3"),
+                 "stable-baselines3": ("stable-baselines3", None),
+                 "floor": ("floor (plain PyTorch)", "ratio_floor_over_sb3")}
+
 #: The benchmark runs tested here: {name: ``python -m`` arguments}; the last two need stable-baselines3.
 BENCHMARK_RUNS = {
     "bench": ("benchmarks.bench", "--quick", "--batch-sizes", "8", "32", "--env-batch", "8"),
-    "peer": ("benchmarks.bench_peer", "--num-envs", "16", "--steps", "8", "--iterations", "2", "--minibatch", "64",
-             "--no-compile", "--threads", "1", "--trainers", "agrl", "agrl-compiled", "stable-baselines3", "floor"),
+    "peer": (*PEER_RUN, "agrl", "stable-baselines3", "floor"),
     "race": ("benchmarks.bench_race", "--budget-seconds", "2", "--eval-every", "1", "--eval-episodes", "8",
              "--max-decisions", "4", "--no-compile", "--threads", "1", "--sb3-geometry", "agrl", "--agrl-override",
              "ppo.num_envs=16", "ppo.steps_per_env=4", "ppo.minibatch_size=32"),
@@ -116,21 +124,37 @@ def test_iteration_record_reports_the_median_split():
 
 
 def test_peer_benchmark_prints_the_split_for_each_trainer_and_the_ratios(benchmark_runs):
-    """``python -m benchmarks.bench_peer`` at a tiny geometry: one iteration line per trainer (agrl, agrl with the
-    compiled loss, SB3 and the plain PyTorch floor), then each one's ratio to SB3."""
+    """``python -m benchmarks.bench_peer`` at a tiny geometry: one iteration line per trainer (agrl, SB3 and the
+    plain PyTorch floor), then each one's ratio to SB3. With the compiled loss too: the slow test below (its
+    compilation takes longer than the rest of the run; the compiled loss itself is tests/rl/test_ppo.py's)."""
     pytest.importorskip("stable_baselines3")
-    completed = benchmark_runs["peer"]
+    assert_peer_records(benchmark_runs["peer"], ["agrl", "stable-baselines3", "floor"])
+
+
+@pytest.mark.slow
+def test_peer_benchmark_with_the_compiled_loss():
+    pytest.importorskip("stable_baselines3")
+    trainers = ["agrl", "agrl-compiled", "stable-baselines3", "floor"]
+    completed = subprocess.run([sys.executable, "-m", *PEER_RUN, *trainers], cwd=REPO, capture_output=True,
+                               text=True, timeout=600)
+    assert_peer_records(completed, trainers)
+
+
+def assert_peer_records(completed: subprocess.CompletedProcess, trainers: list[str]) -> None:
     assert completed.returncode == 0, completed.stderr
     records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
-    assert [record["name"] for record in records] == ["ppo_iteration_seconds"] * 4 + [
-        "ratio_agrl_over_sb3", "ratio_agrl_compiled_over_sb3", "ratio_floor_over_sb3"]
-    assert [record["trainer"] for record in records[:4]] == ["agrl", "agrl (compiled loss)", "stable-baselines3",
-                                                            "floor (plain PyTorch)"]
-    for record in records[:4]:
+    compared = [name for name in trainers if PEER_TRAINERS[name][1] is not None]
+    iterations, ratios = records[:len(trainers)], records[len(trainers):]
+    assert [record["name"] for record in iterations] == ["ppo_iteration_seconds"] * len(trainers)
+    assert [record["name"] for record in ratios] == [PEER_TRAINERS[name][1] for name in compared]
+    assert [record["trainer"] for record in iterations] == [PEER_TRAINERS[name][0] for name in trainers]
+    for record in iterations:
         assert record["decisions_per_iteration"] == 128 and record["iterations_timed"] == 2
         assert 0 < record["collection_s"] and 0 < record["update_s"] and record["unit"] == "s/iteration"
-    agrl, compiled, sb3, floor = records[:4]
-    for ratio, trainer in zip(records[4:], (agrl, compiled, floor), strict=True):
+    by_name = dict(zip(trainers, iterations, strict=True))
+    sb3 = by_name["stable-baselines3"]
+    for ratio, name in zip(ratios, compared, strict=True):
+        trainer = by_name[name]
         expected = trainer["decisions_per_second"] / sb3["decisions_per_second"]
         assert ratio["value"] == pytest.approx(expected, rel=1e-2) and ratio["threads"] == 1
         assert ratio["update_ratio"] == pytest.approx(sb3["update_s"] / trainer["update_s"], rel=1e-2)

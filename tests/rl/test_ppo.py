@@ -88,12 +88,29 @@ def test_compiled_loss_falls_back_to_the_eager_loss_when_compilation_fails(monke
     torch.testing.assert_close(losses["loss_objective"], loss(batch)["loss_objective"])
 
 
-def test_trainer_updates_through_the_compiled_loss(tmp_path, compose_train, tiny_args):
+def test_trainer_updates_through_the_compiled_loss(tmp_path, compose_train, tiny_args, monkeypatch):
+    """``ppo.compile_loss=true`` routes every update through :class:`CompiledLoss` around the trainer's own loss.
+    torch.compile is replaced by a recorder whose "compiled" function calls the module and counts the calls: that
+    the compiled loss computes the eager one is the test above; here only the wiring is, without a second
+    compilation of seconds."""
+    compiled_modules, calls = [], []
+
+    def recording_compile(module, *args, **kwargs):
+        compiled_modules.append(module)
+
+        def compiled(*call_args, **call_kwargs):
+            calls.append(1)
+            return module(*call_args, **call_kwargs)
+        return compiled
+
+    monkeypatch.setattr(torch, "compile", recording_compile)
     config = compose_train(*tiny_args({"ppo.total_frames": 512, "ppo.compile_loss": "true", "eval.episodes": 4}))
     trainer = Trainer(config, tmp_path / "run")
     before = [parameter.detach().clone() for parameter in trainer.actor.parameters()]
     trainer.train()
     assert isinstance(trainer.update_loss, CompiledLoss) and trainer.update_loss.compiled
+    assert compiled_modules == [trainer.update_loss.loss]
+    assert len(calls) == 4  # one iteration of 512 rows: 4 minibatches of 128, one epoch
     assert any(not torch.equal(old, new) for old, new in zip(before, trainer.actor.parameters(), strict=True))
 
 
