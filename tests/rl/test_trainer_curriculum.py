@@ -101,9 +101,9 @@ def test_methods_from_a_baseline_train_on_the_full_box(compose_train, tiny_args,
 #: Tiny runs with the curriculum on, promoted at 5 % training success: with seed 0, promotions after
 #: iterations 1 and 2 (checked below), so the resume point (1) is at scale 0.25 and the resumed iteration
 #: is promoted again. A periodic evaluation after every iteration: one in each half (the trajectory images,
-#: not compared here, are not drawn).
+#: not compared here, are not drawn); the final evaluation, after the last checkpoint, flies 4 episodes.
 RESUME_CHANGES = {**CURRICULUM_ON, "curriculum.promotion_success": "0.05", "eval.interval": "1",
-                  "eval.trajectory_image": "false"}
+                  "eval.trajectory_image": "false", "eval.episodes": "4"}
 ITERATIONS = 2
 
 
