@@ -32,22 +32,32 @@ SCENARIOS = {
 
 
 def _torch_decisions(scenario, actions, dtype, params: GuidanceParameters):
-    aircraft, destination, speed, turn_rate = scenario
+    """One row's decisions: :func:`_torch_rows` of one scenario."""
+    return _torch_rows([scenario], [actions], dtype, params)[0]
+
+
+def _torch_rows(scenarios, action_rows, dtype, params: GuidanceParameters):
+    """Each scenario flown with its own actions, all as rows of one batch (the simulator's cost is per
+    operation, not per row): per row, its decisions' results up to the first that ends the episode."""
     maneuvers = params.maneuvers
     controls = maneuver_table(maneuvers.turn, maneuvers.pull_up, maneuvers.push_over,
                               maneuvers.acceleration, maneuvers.deceleration, dtype=dtype)
     simulator = DecisionSimulator(params.simulation, controls, compile=False)
-    aircraft = torch.tensor([aircraft], dtype=dtype)
-    destination = torch.tensor([destination], dtype=dtype)
-    speed, turn_rate = torch.tensor([speed], dtype=dtype), torch.tensor([turn_rate], dtype=dtype)
-    results = []
-    for action in actions:
-        result = simulator(aircraft, destination, speed, turn_rate, torch.tensor([action]))
-        results.append((result.aircraft_state[0].tolist(), result.destination_state[0].tolist(),
-                        int(result.outcome[0])))
-        aircraft, destination = result.aircraft_state, result.destination_state
-        if results[-1][2] != Outcome.RUNNING:
+    aircraft, destination, speed, turn_rate = (torch.tensor(list(field), dtype=dtype)
+                                               for field in zip(*scenarios, strict=True))
+    results = [[] for _ in scenarios]
+    for actions in zip(*action_rows, strict=True):
+        running = [not rows or rows[-1][2] == Outcome.RUNNING for rows in results]
+        if not any(running):
             break
+        # A row that has ended is frozen (active=False) and read no more, as a row flown alone stops there.
+        result = simulator(aircraft, destination, speed, turn_rate, torch.tensor(actions),
+                           active=torch.tensor(running))
+        for row, rows in enumerate(results):
+            if running[row]:
+                rows.append((result.aircraft_state[row].tolist(), result.destination_state[row].tolist(),
+                             int(result.outcome[row])))
+        aircraft, destination = result.aircraft_state, result.destination_state
     return results
 
 
@@ -94,22 +104,24 @@ def test_maneuver_rows_match_the_torch_table(paper_parameters):
 
 @pytest.mark.parametrize("name", list(SCENARIOS))
 def test_every_maneuver_agrees_in_float64(name, paper_parameters):
-    """Four decisions (600 integration steps) per maneuver: equal to rounding error."""
-    for action in range(7):
-        actions = [action, action, (action + 3) % 7, action]
+    """Four decisions (600 integration steps) per maneuver: equal to rounding error. The seven maneuvers' rows fly
+    as one batch of the torch simulator, each compared with its own reference flight."""
+    action_rows = [[action, action, (action + 3) % 7, action] for action in range(7)]
+    actual = _torch_rows([SCENARIOS[name]] * 7, action_rows, torch.float64, paper_parameters)
+    for actions, row in zip(action_rows, actual, strict=True):
         expected = _reference_decisions(SCENARIOS[name], actions, paper_parameters)
-        actual = _torch_decisions(SCENARIOS[name], actions, torch.float64, paper_parameters)
-        _assert_close(actual, expected, position_m=1e-6, angle_rad=1e-9, speed_ms=1e-9)
+        _assert_close(row, expected, position_m=1e-6, angle_rad=1e-9, speed_ms=1e-9)
 
 
 def test_random_sequences_agree_in_float32(paper_parameters):
-    """What training runs: float32 tensors stay within float32 accuracy of the float64 reference."""
+    """What training runs: float32 tensors stay within float32 accuracy of the float64 reference (the scenarios
+    as rows of one batch)."""
     rng = random.Random(0)
-    for scenario in SCENARIOS.values():
-        actions = [rng.randrange(7) for _ in range(5)]
+    action_rows = [[rng.randrange(7) for _ in range(5)] for _ in SCENARIOS]
+    actual = _torch_rows(list(SCENARIOS.values()), action_rows, torch.float32, paper_parameters)
+    for scenario, actions, row in zip(SCENARIOS.values(), action_rows, actual, strict=True):
         expected = _reference_decisions(scenario, actions, paper_parameters)
-        actual = _torch_decisions(scenario, actions, torch.float32, paper_parameters)
-        _assert_close(actual, expected, position_m=1.0, angle_rad=1e-4, speed_ms=1e-2)
+        _assert_close(row, expected, position_m=1.0, angle_rad=1e-4, speed_ms=1e-2)
 
 
 def test_the_destination_is_reflected_at_the_wall(paper_parameters):

@@ -62,8 +62,11 @@ def test_check_env_specs(kind, make_params):
      (MotionKind.FIXED, {"switch_cost": 1.5, "gamma": 0.9, "use_position": False})],
 )
 def test_reward_parts_sum_to_the_reward(kind, reward_changes, paper_parameters, make_params):
+    """The reward is the sum of its parts, each paid where it should be. The parts are computed once per decision,
+    whatever the integration step: a 0.1 s step (30 per decision, as the tiny training runs) instead of 20 ms."""
     reward = dataclasses.replace(paper_parameters.reward, **reward_changes)
-    env = GuidanceEnv(make_params(kind, reward=reward, max_decisions=8), num_envs=6, seed=3)
+    simulation = dataclasses.replace(paper_parameters.simulation, integration_step=0.1)
+    env = GuidanceEnv(make_params(kind, reward=reward, simulation=simulation, max_decisions=8), num_envs=6, seed=3)
     td = env.rollout(20, policy=cycling_policy, break_when_any_done=False)
     step = td["next"]
     parts = {key: step[key] for key in REWARD_PART_KEYS}

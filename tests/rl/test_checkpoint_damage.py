@@ -160,7 +160,10 @@ def test_resume_steps_over_a_truncated_latest(tmp_path, tiny_run, run_cli):
     assert iteration == tiny_run.iterations - 1  # checkpoint_interval=1: the one before the last
     latest.write_bytes(latest.read_bytes()[: latest.stat().st_size // 2])
     frames = load_checkpoint(previous)["counters"]["frames"]
-    result = run_cli("train", f"resume={run}", f"ppo.total_frames={frames + 2 * 512}")
+    # Two more iterations (the second replaces the first's latest, so the kept previous is whole again); no
+    # periodic evaluation and a 4-episode final one, which this test does not read (eval.* may change on resume).
+    result = run_cli("train", f"resume={run}", f"ppo.total_frames={frames + 2 * 512}", "eval.interval=0",
+                     "eval.episodes=4")
     assert result.returncode == 0, result.stderr[-3000:]
     # Hydra's log: the console (standard output) and the run's train.log.
     for log in (result.stdout, (run / "train.log").read_text()):

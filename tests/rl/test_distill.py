@@ -16,15 +16,15 @@ from agrl.rl.distill import distill
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
 
-#: The teachers' simulation: 30 substeps per 3 s decision instead of the baseline's 150 (a 0.1 s integration step
+#: The teachers' simulation: 10 substeps per 3 s decision instead of the baseline's 150 (a 0.3 s integration step
 #: instead of 0.02 s), and a budget of 60 decisions instead of 200 (a collection round flies one budget).
-COARSE_SIMULATION = {"integration_step": 0.1, "max_decisions": 60}
+COARSE_SIMULATION = {"integration_step": 0.3, "max_decisions": 60}
 
 
 @pytest.fixture(scope="module")
 def coarse_baseline(tmp_path_factory) -> Path:
     """The shipped baseline's networks and config, with :data:`COARSE_SIMULATION` in its saved simulation: a
-    distillation flies its teacher's task as saved, and a round then costs a sixteenth. What is distilled (the
+    distillation flies its teacher's task as saved, and a round then costs about a fiftieth. What is distilled (the
     networks' answers on the visited states) does not depend on the step or the budget."""
     from agrl.rl.checkpoint import resolve_checkpoint_path, save_checkpoint
 

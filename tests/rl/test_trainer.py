@@ -47,12 +47,17 @@ def assert_bitwise_equal(a, b, where: str = "payload") -> None:
 
 
 # ---------------------------------------------------------------------------- determinism
+#: One-iteration runs: episodes of at most 8 decisions (each of the 16 collection steps then sees episodes end
+#: and restart), and so a short final evaluation of 4 episodes.
+ONE_ITERATION = {"ppo.total_frames": 512, "eval.episodes": 4, "simulation.max_decisions": 8}
+
+
 @pytest.fixture(scope="module")
 def one_iteration_runs(tmp_path_factory, compose_train, tiny_args):
     """The actor after one iteration for seeds 0, 0 and 1 (separate Trainers, separate directories)."""
     actors = {}
     for name, seed in (("first", 0), ("again", 0), ("other", 1)):
-        config = compose_train(*tiny_args({"seed": seed, "ppo.total_frames": 512, "eval.episodes": 4}))
+        config = compose_train(*tiny_args({**ONE_ITERATION, "seed": seed}))
         trainer = Trainer(config, tmp_path_factory.mktemp(f"seed{seed}_{name}"))
         initial = {key: value.clone() for key, value in trainer.actor.state_dict().items()}
         trainer.train()
@@ -74,11 +79,13 @@ def test_different_seed_gives_different_actor(one_iteration_runs):
 
 # ---------------------------------------------------------------------------- exact resume
 def test_resume_matches_an_uninterrupted_run_bitwise(tmp_path, tiny_run, compose_train, tiny_args, run_cli):
-    """2 iterations, then ``python -m agrl.train resume=...`` for 2 more == the shared 4-iteration run."""
+    """2 iterations, then ``python -m agrl.train resume=...`` for 2 more == the shared 4-iteration run. The final
+    evaluations, after each half's last checkpoint and not compared, fly 4 episodes (the resumed half reads the
+    saved config)."""
     straight = load_checkpoint(tiny_run.run_dir / "checkpoints" / "latest.pt")
     half = tiny_run.iterations // 2
     run = tmp_path / "run"
-    config = compose_train(*tiny_args({**tiny_run.changes, "ppo.total_frames": half * 512}))
+    config = compose_train(*tiny_args({**tiny_run.changes, "ppo.total_frames": half * 512, "eval.episodes": 4}))
     Trainer(config, run).train()
     assert load_checkpoint(run / "checkpoints" / "latest.pt")["counters"]["iteration"] == half
 
@@ -106,14 +113,14 @@ def test_non_finite_loss_stops_training_and_keeps_the_last_good_checkpoint(
     tmp_path, compose_train, tiny_args
 ):
     run = tmp_path / "run"
-    Trainer(compose_train(*tiny_args({"ppo.total_frames": 512, "eval.episodes": 4})), run).train()
+    Trainer(compose_train(*tiny_args(ONE_ITERATION)), run).train()
     latest = run / "checkpoints" / "latest.pt"
     good = load_checkpoint(latest, required=("actor", "critic", "optimizer", "counters", "carrier", "rng"))
     assert good["counters"]["iteration"] == 1
 
     # Continue the run with one critic weight set to NaN: the collector only runs the actor, so collection
     # works, and the value targets (GAE) and therefore the PPO loss become NaN in the first update.
-    trainer = Trainer(compose_train(*tiny_args({"ppo.total_frames": 1024, "eval.episodes": 4})), run,
+    trainer = Trainer(compose_train(*tiny_args({**ONE_ITERATION, "ppo.total_frames": 1024})), run,
                       resume_payload={**good, "_path": str(latest)})
     with torch.no_grad():
         next(trainer.critic.parameters()).view(-1)[0] = float("nan")

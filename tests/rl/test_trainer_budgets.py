@@ -12,6 +12,9 @@ from agrl.rl.trainer import Trainer
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
 
 BUDGET_ITERATIONS = 10
+#: What these runs do not read: the periodic evaluations' trajectory images, and all but 4 episodes of the final
+#: evaluation (it follows the stop).
+UNREAD = {"eval.trajectory_image": "false", "eval.episodes": 4}
 
 
 def stop_reasons(caplog) -> list[str]:
@@ -24,7 +27,8 @@ def test_target_success_stops_at_the_first_periodic_evaluation_that_reaches_it(t
     # in 32 periodic episodes is met early, long before the 10-iteration frame budget.
     target = 1 / 32
     config = compose_train(*tiny_args({"ppo.total_frames": BUDGET_ITERATIONS * 512, "eval.interval": 1,
-                                       "eval.periodic_episodes": 32, "target_success": target}), "method=pretrained")
+                                       "eval.periodic_episodes": 32, "target_success": target, **UNREAD}),
+                           "method=pretrained")
     caplog.set_level(logging.INFO, logger="agrl.train")
     summary = Trainer(config, tmp_path / "run").train()
     rows = read_metrics(tmp_path / "run")
@@ -36,8 +40,8 @@ def test_target_success_stops_at_the_first_periodic_evaluation_that_reaches_it(t
 
 
 def test_target_success_0_never_stops_a_run(tmp_path, compose_train, tiny_args, caplog):
-    config = compose_train(*tiny_args({"ppo.total_frames": 2 * 512, "eval.interval": 1, "target_success": 0}),
-                           "method=pretrained")
+    config = compose_train(*tiny_args({"ppo.total_frames": 2 * 512, "eval.interval": 1, "target_success": 0,
+                                       **UNREAD}), "method=pretrained")
     caplog.set_level(logging.INFO, logger="agrl.train")
     assert Trainer(config, tmp_path / "run").train()["iterations"] == 2
     assert stop_reasons(caplog) == ["training stopped: reached ppo.total_frames=1024"]
@@ -45,7 +49,8 @@ def test_target_success_0_never_stops_a_run(tmp_path, compose_train, tiny_args, 
 
 def test_max_minutes_stops_after_the_iteration_that_passes_it(tmp_path, compose_train, tiny_args, caplog):
     # 6 ms of training: the first iteration takes longer, so the run stops after it.
-    config = compose_train(*tiny_args({"ppo.total_frames": BUDGET_ITERATIONS * 512, "ppo.max_minutes": 0.0001}))
+    config = compose_train(*tiny_args({"ppo.total_frames": BUDGET_ITERATIONS * 512, "ppo.max_minutes": 0.0001,
+                                       **UNREAD}))
     caplog.set_level(logging.INFO, logger="agrl.train")
     trainer = Trainer(config, tmp_path / "run")
     summary = trainer.train()
