@@ -6,7 +6,8 @@
 * ``compose_train`` composes ``conf/`` in-process and validates it (``agrl.config.load_config``).
 * ``run_cli`` runs ``python -m agrl.<module>`` in a subprocess (one torch thread, see below); ``run_cli.checks``
   runs only its checks before Hydra, in process (a refused command line costs no interpreter start-up).
-* ``tiny_run`` is one real ``python -m agrl.train`` run of 4 iterations, shared by the whole session.
+* ``tiny_run`` is one real ``python -m agrl.train`` run of 4 iterations, shared by the whole session (its xdist
+  workers too: it is trained once).
 * ``paper_parameters`` is the :class:`GuidanceParameters` of ``task=fixed reward=both`` composed from ``conf/`` (the
   one source of every value; the records have no defaults): the paper's Table 1/2 values and this project's
   choices, eager. A test that needs another value uses ``dataclasses.replace`` on it; ``compose_parameters``
@@ -258,10 +259,28 @@ class TinyRun:
 
 @pytest.fixture(scope="session")
 def tiny_run(tmp_path_factory, cli_workdir) -> TinyRun:
-    """One real ``python -m agrl.train`` run (4 iterations, seed 0); treat its directory as read-only."""
-    run_dir = tmp_path_factory.mktemp("tiny_run") / "run"
-    overrides = _tiny_args(TINY_RUN_CHANGES)
-    result = _run_cli("train", *overrides, f"hydra.run.dir={run_dir}", cwd=cli_workdir)
-    assert result.returncode == 0, f"tiny run failed:\n{result.stdout[-3000:]}\n{result.stderr[-3000:]}"
-    return TinyRun(run_dir=run_dir, changes=dict(TINY_RUN_CHANGES), iterations=TINY_RUN_ITERATIONS,
-                   overrides=overrides, stdout=result.stdout, stderr=result.stderr)
+    """One real ``python -m agrl.train`` run (4 iterations, seed 0); treat its directory as read-only.
+
+    It is trained once per session, not once per xdist worker: the first worker to ask trains it under a file
+    lock in the session's shared temporary folder (pytest-xdist's documented pattern) and records its result there;
+    the others wait for the lock and read the record (a failed run is recorded too, and fails them the same way)."""
+    import json
+
+    from filelock import FileLock
+
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # this session's folder, shared by its workers (each has its own basetemp below it)
+    folder = root / "tiny_run_shared"
+    record = folder / "result.json"
+    with FileLock(str(root / "tiny_run_shared.lock")):
+        if not record.is_file():
+            folder.mkdir(exist_ok=True)
+            result = _run_cli("train", *_tiny_args(TINY_RUN_CHANGES), f"hydra.run.dir={folder / 'run'}",
+                              cwd=cli_workdir)
+            record.write_text(json.dumps({"returncode": result.returncode, "stdout": result.stdout,
+                                          "stderr": result.stderr}))
+    result = json.loads(record.read_text())
+    assert result["returncode"] == 0, f"tiny run failed:\n{result['stdout'][-3000:]}\n{result['stderr'][-3000:]}"
+    return TinyRun(run_dir=folder / "run", changes=dict(TINY_RUN_CHANGES), iterations=TINY_RUN_ITERATIONS,
+                   overrides=_tiny_args(TINY_RUN_CHANGES), stdout=result["stdout"], stderr=result["stderr"])

@@ -26,13 +26,23 @@ SLIM_KEYS = {"format_version", "versions", "actor", "critic", "config", "config_
 
 @pytest.fixture(scope="module")
 def exported(tiny_run, run_cli, tmp_path_factory):
+    """The export of the shared tiny run, in process (``main`` is all ``python -m agrl.export`` runs:
+    ``sys.exit(main())``), and a missing source, as a real process: exit code and stderr line of the command."""
+    import contextlib
+    import io
+    import subprocess
+
+    from agrl.export import main
+
     directory = tmp_path_factory.mktemp("export")
-    jobs = {
-        "run-dir": ("export", str(tiny_run.run_dir), str(directory / "slim.pt"),
-                    "--evaluation", str(tiny_run.run_dir / "eval" / "eval.json")),
-        "missing": ("export", str(directory / "missing.pt"), str(directory / "never.pt")),
-    }
-    return {"directory": directory, **run_cli.batch(jobs)}
+    arguments = [str(tiny_run.run_dir), str(directory / "slim.pt"), "--evaluation",
+                 str(tiny_run.run_dir / "eval" / "eval.json")]
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        code = main(arguments)
+    run_dir = subprocess.CompletedProcess(["main", *arguments], code, stdout.getvalue(), stderr.getvalue())
+    missing = run_cli.batch({"missing": ("export", str(directory / "missing.pt"), str(directory / "never.pt"))})
+    return {"directory": directory, "run-dir": run_dir, **missing}
 
 
 def test_export_keeps_the_networks_config_and_evaluation_only(exported, tiny_run):
