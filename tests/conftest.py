@@ -58,6 +58,7 @@ TINY_OVERRIDES = {
     "progress": "false",
     "curriculum.enabled": "false",
     "target_success": "0",
+    "eval.confirm_episodes": "0",
 }
 FRAMES_PER_ITERATION = 32 * 16
 

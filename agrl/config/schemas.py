@@ -142,6 +142,7 @@ class EvaluationConfig:
     periodic_episodes: int = MISSING  # episodes of each periodic evaluation
     trajectory_image: bool = MISSING  # log each periodic evaluation's trajectory figure to TensorBoard (Images)
     min_train_success: float = MISSING  # periodic evaluations wait for this training success on the full start box
+    confirm_episodes: int = MISSING  # other episodes that must confirm target_success before a stop (0 = none)
 
     def __post_init__(self) -> None:
         require(self.episodes >= 1, "eval.episodes", self.episodes, ">= 1")
@@ -151,6 +152,8 @@ class EvaluationConfig:
         require(self.periodic_episodes >= 1, "eval.periodic_episodes", self.periodic_episodes, ">= 1")
         require(0.0 <= self.min_train_success <= 1.0, "eval.min_train_success", self.min_train_success,
                  "in [0, 1] (0 = no wait)")
+        require(self.confirm_episodes >= 0, "eval.confirm_episodes", self.confirm_episodes,
+                 ">= 0 (0 = stop on the periodic evaluation alone)")
 
 
 @dataclass

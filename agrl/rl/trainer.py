@@ -111,6 +111,10 @@ class Trainer:
     def eval_seed(self) -> int:
         return self.cfg.seed + 1_000_003  # a fixed evaluation set, disjoint from the training stream
 
+    @property
+    def confirm_seed(self) -> int:
+        return self.cfg.seed + 2_000_003  # the stop's confirmation set, another fixed set
+
     def _make_envs(self) -> tuple[GuidanceEnv, GuidanceEnv]:
         observation = self.cfg.agent.observation
         train = GuidanceEnv(self.params, num_envs=self.cfg.ppo.num_envs, device=self.device, seed=self.cfg.seed,
@@ -276,12 +280,15 @@ class Trainer:
         return (self.counters.curriculum_scale >= 1.0 and success is not None
                 and success >= self.cfg.eval.min_train_success)
 
-    def evaluate(self, episodes: int | None = None, record_trajectories: bool = False) -> tuple[dict[str, Any], Any]:
+    def evaluate(self, episodes: int | None = None, record_trajectories: bool = False,
+                 seed: int | None = None) -> tuple[dict[str, Any], Any]:
+        """``episodes`` deterministic episodes (default: the periodic set's size) drawn from ``seed`` (default:
+        :attr:`eval_seed`): the same episodes at every call."""
         env = self.eval_env
         if episodes is not None and episodes != env.batch_size[0]:
             env = GuidanceEnv(self.params, num_envs=episodes, device=self.device, seed=self.eval_seed,
                               observation=self.cfg.agent.observation)
-        env.set_seed(self.eval_seed)  # the same evaluation episodes every time
+        env.set_seed(self.eval_seed if seed is None else seed)
         records = run_episodes(env, self.actor, record_trajectories=record_trajectories)
         return summarise(records), records
 
@@ -361,6 +368,7 @@ class Trainer:
             metrics.update(self.method.iteration_metrics(self, fill_time))
             if self._evaluation_due(metrics):
                 metrics.update(self._periodic_evaluation())
+                metrics.update(self._confirmation(metrics))
             self._snapshot = self._state()
             self._log(metrics)
             self._checkpoint(metrics)
@@ -391,10 +399,22 @@ class Trainer:
         if self.counters.iteration % self.cfg.checkpoint_interval == 0:
             self.save("latest", self._snapshot)
 
+    def _confirmation(self, metrics: dict[str, float]) -> dict[str, float]:
+        """Once a periodic evaluation reaches ``target_success``, ``eval.confirm_episodes`` other episodes (a fixed
+        set of their own) must reach it too before the run stops: a few hundred periodic episodes reach a target
+        near 100 % by luck often enough that a run stopped on them alone scores below it on its final evaluation."""
+        target, episodes = self.cfg.target_success, self.cfg.eval.confirm_episodes
+        if not (target and episodes and metrics["eval/success_rate"] >= target):
+            return {}
+        summary, _ = self.evaluate(episodes, seed=self.confirm_seed)
+        return {"eval/confirm_success_rate": summary["success_rate"]}
+
     def _target_reached(self, metrics: dict[str, float]) -> str | None:
-        target, success = self.cfg.target_success, metrics.get("eval/success_rate")
+        target, confirm = self.cfg.target_success, self.cfg.eval.confirm_episodes
+        success = metrics.get("eval/confirm_success_rate" if confirm else "eval/success_rate")
         if target and success is not None and success >= target:
-            return f"periodic evaluation reached target_success={target}"
+            confirmed = f", confirmed on {confirm} other episodes ({success:.4f})" if confirm else ""
+            return f"periodic evaluation reached target_success={target}{confirmed}"
         return None
 
     def _log(self, metrics: dict[str, float]) -> None:
