@@ -75,10 +75,12 @@ def test_substeps_from_decision_period(simulation):
         _ = dataclasses.replace(simulation, integration_step=0.07, decision_period=3.0).substeps
 
 
+@pytest.mark.slow
 def test_compiled_matches_eager(simulation, controls):
     """The fused step as training compiles it (ten integration steps per call) against the eager one over three
     decisions. Tolerances: float32 sums of 150 steps in another order differ by at most 1e-2 m in position and
-    1e-4 in speed (m/s) and angles (rad); outcomes exactly."""
+    1e-4 in speed (m/s) and angles (rad); outcomes exactly. Slow: its cold compilation takes about half a minute
+    on one core; the fast suite compares a two-step kernel, below."""
     compiled_simulator = DecisionSimulator(simulation, controls, compile=True)
     assert compiled_simulator.substeps_per_call == 10
     _assert_compiled_matches_eager(compiled_simulator, simulation, controls, counts=(16,), decisions=3)
@@ -139,8 +141,8 @@ def test_headings_are_wrapped(simulation, controls):
 def test_compiled_matches_eager_on_shrinking_batches(simulation, controls):
     """One compiled simulator fed batches of decreasing size, as the reuse replay does when it drops finished
     episodes: the second size recompiles for dynamic sizes, one row specialises again. Two integration steps per
-    compiled call: the shape handling is the point here, and a short kernel compiles in a third of the time of
-    training's ten (whose fusion the test above checks)."""
+    compiled call (the same step function and inductor options as training's ten, whose kernel the slow test above
+    compares): a short kernel compiles in a third of the time. Tolerances as above."""
     compiled_simulator = DecisionSimulator(simulation, controls, compile=True, substeps_per_call=2)
     _assert_compiled_matches_eager(compiled_simulator, simulation, controls, counts=(64, 37, 5, 1), decisions=2)
 

@@ -63,14 +63,14 @@ def test_max_minutes_stops_after_the_iteration_that_passes_it(tmp_path, compose_
 def test_a_confirmation_that_falls_short_lets_the_run_go_on(tmp_path, compose_train, tiny_args, caplog):
     """The shipped baseline flies the one periodic episode to its end (100 %) from the start, but not every one of
     64 other episodes of at most 30 decisions: no iteration may stop the run, and each logs its confirmation."""
-    config = compose_train(*tiny_args({"ppo.total_frames": 3 * 512, "eval.interval": 1, "eval.periodic_episodes": 1,
+    config = compose_train(*tiny_args({"ppo.total_frames": 2 * 512, "eval.interval": 1, "eval.periodic_episodes": 1,
                                        "target_success": 1.0, "eval.confirm_episodes": 64, **UNREAD}),
                            "method=pretrained")
     caplog.set_level(logging.INFO, logger="agrl.train")
-    assert Trainer(config, tmp_path / "run").train()["iterations"] == 3
-    assert stop_reasons(caplog) == ["training stopped: reached ppo.total_frames=1536"]
+    assert Trainer(config, tmp_path / "run").train()["iterations"] == 2
+    assert stop_reasons(caplog) == ["training stopped: reached ppo.total_frames=1024"]
     rows = read_metrics(tmp_path / "run")[1:]  # row 0: before training, never a stop
-    assert [row["eval/success_rate"] for row in rows] == [1.0] * 3
+    assert [row["eval/success_rate"] for row in rows] == [1.0] * 2
     assert all(0.0 < row["eval/confirm_success_rate"] < 1.0 for row in rows)
 
 
