@@ -1,10 +1,22 @@
-"""A ``torch.compile``d function that falls back to its eager original if compilation fails."""
+"""Compiled functions: a fallback to the eager original if compilation fails, and a compilation kept on disk
+so that later processes load it instead of compiling again."""
 
 from __future__ import annotations
 
+import hashlib
+import os
+import platform
+import sys
 import warnings
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
+
+import torch
+from torch.utils import _pytree as pytree
+
+#: Environment variable naming the folder of kept compilations; ``off`` keeps none (each process compiles).
+CACHE_VARIABLE = "AGRL_COMPILE_CACHE"
 
 
 class EagerFallback:
@@ -31,3 +43,155 @@ class EagerFallback:
                           RuntimeWarning, stacklevel=3)
             self._call = self.eager
             return self.eager(*args, **kwargs)
+
+
+def compile_cache_dir() -> Path | None:
+    """The folder of kept compilations: ``$AGRL_COMPILE_CACHE`` (``off``: none), else ``$XDG_CACHE_HOME/agrl/
+    compiled``, else ``~/.cache/agrl/compiled``. A user folder rather than ``/tmp``, so it outlives a reboot."""
+    chosen = os.environ.get(CACHE_VARIABLE)
+    if chosen is not None:
+        return None if chosen.strip().lower() in ("off", "0", "none", "") else Path(chosen).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "agrl" / "compiled"
+
+
+class CachedRowwiseCompile:
+    """``fn`` compiled with ``torch.compile`` once for any number of rows, kept on disk for later processes.
+
+    ``fn`` must be row-wise: each tensor argument and result has the rows as its first dimension, and row i of the
+    results depends on row i of the arguments only (so one or no row can be padded or run eagerly); its arguments
+    keep their dtype, device and strides from call to call (a call that breaks the compilation's guards raises,
+    and :class:`EagerFallback` then runs ``fn`` eagerly), and its first argument (or its first element) is a
+    tensor. It is compiled
+    ahead of its first call (``torch.compile(...).aot_compile``) with the rows as a dynamic dimension, once per
+    dtype and device, and saved in :func:`compile_cache_dir` under a name that hashes ``key`` (the constants the
+    caller passes in, e.g. its parameters), the source of ``fn``'s package, the torch and Python versions and the
+    CPU or GPU. A later process with the same name loads it (under a second, warm, instead of tens of seconds of
+    tracing and compiling); torch's own cache (``TORCHINDUCTOR_CACHE_DIR``) keeps the built kernels it needs,
+    and without them loading rebuilds them (a few seconds). A file that cannot be loaded or no longer fits is
+    compiled again and replaced, with one warning line; a folder that cannot be written is used in memory only.
+
+    The files hold code, like torch's own compile cache: they are written by this class for this user and are
+    never meant to be shared (the folder is created private).
+    """
+
+    def __init__(self, fn: Callable, what: str, key: str, options: dict[str, Any] | None = None):
+        self.fn = fn
+        self.what = what
+        self.key = key
+        self.options = dict(options or {})
+        self._compiled: dict[tuple, Callable] = {}
+        self.loaded_from: Path | None = None  # the file of the last compilation loaded from disk, if any
+
+    def __call__(self, *args: Any) -> Any:
+        first = _first_tensor(args)
+        signature = (first.dtype, first.device)
+        compiled = self._compiled.get(signature)
+        rows = first.shape[0]
+        if compiled is not None and rows > 1:
+            return compiled(*args)  # the common case, kept short: it runs many times a decision
+        if rows == 0:
+            return self.fn(*args)  # nothing to compute
+        if rows == 1:  # the compilation's rows start at two (torch specialises 0 and 1): pad with a copy
+            padded = pytree.tree_map_only(torch.Tensor, lambda tensor: torch.cat((tensor, tensor)), args)
+            return pytree.tree_map_only(torch.Tensor, lambda tensor: tensor[:1], self(*padded))
+        compiled, result = self._load_or_compile(signature, args)
+        self._compiled[signature] = compiled
+        return result
+
+    # ------------------------------------------------------------------ the disk cache
+    def cache_file(self, signature: tuple) -> Path | None:
+        folder = compile_cache_dir()
+        if folder is None:
+            return None
+        digest = hashlib.sha256()
+        for part in (self.key, repr(signature), repr(sorted(self.options.items())), torch.__version__,
+                     sys.version, platform.machine(), _device_description(signature)):
+            digest.update(part.encode() + b"\0")
+        for source in sorted(Path(sys.modules[self.fn.__module__].__file__).parent.glob("*.py")):
+            digest.update(source.read_bytes())
+        return folder / f"{self.fn.__name__.strip('_')}-{digest.hexdigest()[:20]}.bin"
+
+    def _load_or_compile(self, signature: tuple, args: tuple) -> tuple[Callable, Any]:
+        path = self.cache_file(signature)
+        if path is None:
+            compiled = self._compile(args)
+            return compiled, compiled(*args)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+            from filelock import FileLock
+
+            lock = FileLock(f"{path}.lock")
+            lock.acquire()  # another process compiling the same function: wait, then load its file
+        except OSError as error:
+            warnings.warn(f"cannot keep the compiled {self.what} in {path.parent} ({error}); compiling it in "
+                          "memory", RuntimeWarning, stacklevel=4)
+            compiled = self._compile(args)
+            return compiled, compiled(*args)
+        try:
+            if path.is_file():
+                try:
+                    with open(path, "rb") as file:
+                        compiled = torch.compiler.load_compiled_function(file, f_globals=self.fn.__globals__)
+                    result = compiled(*args)
+                    self.loaded_from = path
+                    os.utime(path)  # recently used: kept by _prune
+                    return compiled, result
+                except Exception as error:  # noqa: BLE001 - a damaged or stale file is compiled again
+                    reason = (str(error).strip().splitlines() or [""])[0]
+                    warnings.warn(f"the compiled {self.what} in {path} could not be used ({type(error).__name__}: "
+                                  f"{reason}); compiling it again", RuntimeWarning, stacklevel=4)
+            compiled = self._compile(args)
+            result = compiled(*args)  # a compilation that cannot run is not kept
+            self._save(compiled, path)
+            return compiled, result
+        finally:
+            lock.release()
+
+    def _compile(self, args: tuple) -> Callable:
+        import torch._dynamo
+
+        example = pytree.tree_map_only(torch.Tensor, torch.clone, args)  # marking dynamic leaves the caller's alone
+        for tensor in pytree.tree_leaves(example):
+            if isinstance(tensor, torch.Tensor):
+                torch._dynamo.mark_dynamic(tensor, 0)
+        function = torch.compile(self.fn, fullgraph=True, options=self.options)
+        return function.aot_compile((example, {}))
+
+    def _save(self, compiled: Callable, path: Path) -> None:
+        partial = path.with_name(f"{path.name}.{os.getpid()}.partial")
+        try:
+            compiled.save_compiled_function(str(partial))
+            os.replace(partial, path)  # readers see the old file or the whole new one
+            _prune(path.parent)
+        except OSError as error:
+            partial.unlink(missing_ok=True)
+            warnings.warn(f"cannot keep the compiled {self.what} in {path} ({error}); it is compiled again in the "
+                          "next process", RuntimeWarning, stacklevel=5)
+
+
+#: Compilations kept in the cache folder (about 1 MB each); the least recently used beyond this are removed, so that
+#: editing agrl.core (a new name for each version) does not fill the disk.
+KEPT_COMPILATIONS = 32
+
+
+def _prune(folder: Path) -> None:
+    files = sorted(folder.glob("*.bin"), key=lambda file: file.stat().st_mtime, reverse=True)
+    for file in files[KEPT_COMPILATIONS:]:
+        file.unlink(missing_ok=True)
+        Path(f"{file}.lock").unlink(missing_ok=True)
+
+
+def _first_tensor(value: Any) -> torch.Tensor:
+    while not isinstance(value, torch.Tensor):
+        value = value[0]
+    return value
+
+
+def _device_description(signature: tuple) -> str:
+    """The processor the kernels are built for: the CPU's vector instructions, and the GPU's model if any."""
+    _, device = signature
+    described = torch.backends.cpu.get_cpu_capability()
+    if device.type == "cuda":
+        described += f" {torch.cuda.get_device_name(device)} {torch.cuda.get_device_capability(device)}"
+    return described

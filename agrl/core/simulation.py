@@ -26,7 +26,7 @@ from agrl.core.aircraft import (
     integrate_aircraft,
     wrap_angle,
 )
-from agrl.core.compiled import EagerFallback
+from agrl.core.compiled import CachedRowwiseCompile, EagerFallback
 from agrl.core.destinations import DestinationState, move_destination
 from agrl.core.termination import Airspace, Outcome, SuccessTolerance, is_outside_airspace, is_success
 
@@ -125,7 +125,9 @@ class DecisionSimulator:
     ``compile=True`` fuses ``substeps_per_call`` integration steps into one kernel with
     ``torch.compile`` (it must divide the 150 steps of a decision); if that is unavailable
     (no compiler, unsupported platform) it warns once and runs eagerly, one step at a time.
-    Compiling takes about 20 s per batch-size regime on a cold cache, a few seconds warm.
+    One compilation serves every batch size; it takes about 20 s the first time and is kept
+    in the user's compile cache (:func:`agrl.core.compiled.compile_cache_dir`), from which a
+    later process loads it in under a second.
     """
 
     def __init__(
@@ -141,7 +143,10 @@ class DecisionSimulator:
                 "integration steps of a decision"
             )
         self.substeps_per_call = substeps_per_call if compile else 1
-        compiled = torch.compile(_substeps, dynamic=None, options=_INDUCTOR_OPTIONS) if compile else _substeps
+        compiled = _substeps
+        if compile:  # one compilation for every batch size, kept on disk for the next process (agrl.core.compiled)
+            compiled = CachedRowwiseCompile(_substeps, "simulation step",
+                                            key=f"{params!r} x{self.substeps_per_call}", options=_INDUCTOR_OPTIONS)
         self._substeps = EagerFallback(compiled, _substeps, "the simulation step")
 
     @property

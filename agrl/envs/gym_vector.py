@@ -4,7 +4,7 @@
 
     import gymnasium, agrl
     envs = gymnasium.make_vec("agrl/Guidance-v0", num_envs=4096, vectorization_mode="vector_entry_point",
-                              task="uniform", compile=True)
+                              task="uniform")    # compiled (from 256 rows; docs/using_an_agent.md)
     observations, infos = envs.reset(seed=0)                 # (4096, 23) float32
     observations, rewards, terminated, truncated, infos = envs.step(envs.action_space.sample())
 
@@ -44,11 +44,18 @@ _ROW_KEYS = (*SCENARIO_KEYS, "last_action", "action_before_last", "step_count", 
 _OUTCOME_NAMES = np.array([outcome.name.lower() for outcome in Outcome])
 
 
+#: Rows from which the vector env compiles its step by default: below, the eager step's per-call cost is small
+#: beside a first compilation's half minute.
+COMPILED_FROM_ROWS = 256
+
+
 class GuidanceVectorEnv(VectorEnv):
     """``num_envs`` guidance rows stepped together; the single env's keyword arguments plus ``device``.
 
-    ``compile=True`` fuses the 20 ms step with ``torch.compile`` (10-20 s of start-up, then several
-    times faster: worth it for thousands of rows). ``info`` has the single env's keys, one entry per
+    ``compile=True`` fuses the 20 ms step with ``torch.compile``: several times faster from a few hundred rows
+    on, after one compilation of 20-40 s that later processes load from the user's compile cache in about a
+    second (:func:`agrl.core.compiled.compile_cache_dir`). The default, ``None``, compiles from
+    :data:`COMPILED_FROM_ROWS` rows on. ``info`` has the single env's keys, one entry per
     row (``outcome`` as strings, ``aircraft_state`` ``(num_envs, 7)``, ...), each with gymnasium's
     ``_key`` mask.
     """
@@ -65,7 +72,7 @@ class GuidanceVectorEnv(VectorEnv):
         turn_direction: int | None = None,
         max_decisions: int | None = None,
         reward: str | None = None,
-        compile: bool = False,
+        compile: bool | None = None,
         device: str = "cpu",
         render_mode: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
@@ -78,6 +85,10 @@ class GuidanceVectorEnv(VectorEnv):
         if modes.get(getattr(autoreset_mode, "value", autoreset_mode)) is None:
             _fail("autoreset_mode", autoreset_mode, f"one of {', '.join(modes)}")
         self.metadata = {**self.metadata, "autoreset_mode": modes[getattr(autoreset_mode, "value", autoreset_mode)]}
+        if compile is None:
+            compile = int(num_envs) >= COMPILED_FROM_ROWS
+        elif not isinstance(compile, bool):
+            _fail("compile", compile, f"True, False or None (compiled from {COMPILED_FROM_ROWS} rows)")
         self.params = gym_parameters(
             task=task, speed=speed, radius=radius, turn_direction=turn_direction,
             max_decisions=max_decisions, reward=reward, compile=compile,

@@ -1,11 +1,20 @@
-"""The eager fallback of compiled functions (agrl.core.compiled); the simulator's and the loss's use of it are
-tested in tests/core/test_simulation.py and tests/rl/test_ppo.py."""
+"""Compiled functions (agrl.core.compiled): the eager fallback and the compilation kept on disk. The simulator's
+and the loss's use of them are tested in tests/core/test_simulation.py and tests/rl/test_ppo.py."""
 
 from __future__ import annotations
 
-import pytest
+import os
 
-from agrl.core.compiled import EagerFallback
+import pytest
+import torch
+
+from agrl.core.compiled import (
+    CACHE_VARIABLE,
+    KEPT_COMPILATIONS,
+    CachedRowwiseCompile,
+    EagerFallback,
+    compile_cache_dir,
+)
 
 
 def test_an_error_of_the_eager_function_itself_is_raised():
@@ -35,3 +44,90 @@ def test_a_failing_compiled_function_warns_once_then_runs_the_eager_one():
     assert not function.compiled
     assert function(4) == 8  # no second warning, no second try
     assert calls == ["compiled", "eager", "eager"]
+
+
+# ---------------------------------------------------------------- a compilation kept on disk
+def _rowwise(position, speed, step):
+    """A small row-wise function of the simulator's kind (tensors with rows first, a Python constant)."""
+    moved = position + speed * step
+    return moved, torch.sin(moved) * speed
+
+
+def _rows(count: int, seed: int = 0):
+    generator = torch.Generator().manual_seed(seed)
+    return torch.randn(count, generator=generator), torch.rand(count, generator=generator)
+
+
+def _assert_matches_eager(function, count):
+    position, speed = _rows(count, seed=count)
+    for result, expected in zip(function(position, speed, 0.5), _rowwise(position, speed, 0.5), strict=True):
+        assert result.shape == (count,)
+        torch.testing.assert_close(result, expected)
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv(CACHE_VARIABLE, str(tmp_path / "compiled"))
+    return tmp_path / "compiled"
+
+
+def test_a_compilation_is_kept_on_disk_and_loaded_by_the_next_one(cache):
+    first = CachedRowwiseCompile(_rowwise, "the test function", key="step 0.5")
+    for count in (64, 37, 1, 0):  # one compilation for every size; one row padded, none run eagerly
+        _assert_matches_eager(first, count)
+    assert first.loaded_from is None
+    (kept,) = cache.glob("*.bin")
+    assert oct(cache.stat().st_mode & 0o777) == oct(0o700)  # the files hold code: private to the user
+
+    again = CachedRowwiseCompile(_rowwise, "the test function", key="step 0.5")
+    _assert_matches_eager(again, 5)
+    assert again.loaded_from == kept
+    other = CachedRowwiseCompile(_rowwise, "the test function", key="step 0.25")  # other constants: another file
+    assert other.cache_file((torch.float32, torch.device("cpu"))) != kept
+
+
+def test_a_damaged_compilation_is_compiled_again_with_one_line(cache):
+    CachedRowwiseCompile(_rowwise, "the test function", key="damaged")(*_rows(8), 0.5)
+    (kept,) = cache.glob("*.bin")
+    kept.write_bytes(kept.read_bytes()[:1000])  # truncated, as by a full disk or a killed writer
+    damaged = CachedRowwiseCompile(_rowwise, "the test function", key="damaged")
+    with pytest.warns(RuntimeWarning, match=f"the compiled the test function in {kept} could not be used") as caught:
+        _assert_matches_eager(damaged, 8)
+    assert len(caught) == 1 and "\n" not in str(caught[0].message)
+    assert damaged.loaded_from is None
+    repaired = CachedRowwiseCompile(_rowwise, "the test function", key="damaged")
+    _assert_matches_eager(repaired, 8)
+    assert repaired.loaded_from == kept
+
+
+def test_a_cache_that_cannot_be_written_compiles_in_memory(tmp_path, monkeypatch):
+    blocked = tmp_path / "a file"
+    blocked.write_text("not a folder")
+    monkeypatch.setenv(CACHE_VARIABLE, str(blocked / "compiled"))
+    with pytest.warns(RuntimeWarning, match="cannot keep the compiled the test function in .*a file"):
+        _assert_matches_eager(CachedRowwiseCompile(_rowwise, "the test function", key="blocked"), 8)
+
+
+def test_off_keeps_nothing(monkeypatch):
+    monkeypatch.setenv(CACHE_VARIABLE, "off")
+    assert compile_cache_dir() is None
+    function = CachedRowwiseCompile(_rowwise, "the test function", key="off")
+    _assert_matches_eager(function, 8)
+    assert function.loaded_from is None
+
+
+def test_the_default_folder_is_the_users_cache(monkeypatch, tmp_path):
+    monkeypatch.delenv(CACHE_VARIABLE, raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert compile_cache_dir() == tmp_path / "agrl" / "compiled"
+
+
+def test_the_least_recently_used_compilations_beyond_the_limit_are_removed(cache):
+    cache.mkdir(mode=0o700)
+    old = [cache / f"old-{index:02d}.bin" for index in range(KEPT_COMPILATIONS)]
+    for age, file in enumerate(old):
+        file.write_bytes(b"")
+        os.utime(file, (1_000_000 + age, 1_000_000 + age))  # old[0] is the least recently used
+    CachedRowwiseCompile(_rowwise, "the test function", key="new")(*_rows(8), 0.5)
+    kept = set(cache.glob("*.bin"))
+    assert len(kept) == KEPT_COMPILATIONS and old[0] not in kept and old[1] in kept

@@ -165,20 +165,25 @@ def _assert_compiled_matches_eager(compiled_simulator, simulation, controls, cou
                                    msg=f"speeds and angles, {count} rows")
 
 
-def _failing_compile(function, *args, **kwargs):
-    def compiled(*call_args, **call_kwargs):
+class _FailingCompile:
+    """What ``torch.compile`` returns on a machine without a C++ compiler, as far as compiling is concerned."""
+
+    def __init__(self, function, *args, **kwargs):
+        pass
+
+    def aot_compile(self, example_inputs):
         raise RuntimeError("no C++ compiler")
-    return compiled
 
 
-def test_a_simulator_whose_compilation_fails_warns_once_and_runs_eagerly(monkeypatch, paper_parameters):
+def test_a_simulator_whose_compilation_fails_warns_once_and_runs_eagerly(monkeypatch, tmp_path, paper_parameters):
     params = paper_parameters.simulation
     controls = paper_parameters.maneuvers.controls("cpu")
     aircraft, destination, speed, turn_rate, generator = random_batch(8, seed=2, limits=params.limits)
     actions = [torch.randint(0, 7, (8,), generator=generator) for _ in range(2)]
     eager = run(DecisionSimulator(params, controls), aircraft, destination, speed, turn_rate, actions)
 
-    monkeypatch.setattr(torch, "compile", _failing_compile)
+    monkeypatch.setenv("AGRL_COMPILE_CACHE", str(tmp_path))  # nothing kept from an earlier compilation
+    monkeypatch.setattr(torch, "compile", _FailingCompile)
     simulator = DecisionSimulator(params, controls, compile=True)
     assert simulator.compiled
     failure = "torch.compile of the simulation step failed.*no C\\+\\+ compiler"
