@@ -66,6 +66,7 @@ bench: install
 	$(PY) -m benchmarks.bench $(ARGS)
 	$(PY) -m benchmarks.bench_reuse
 	$(PY) -m benchmarks.bench_peer --trainers agrl agrl-compiled stable-baselines3 floor
+	$(PY) -m benchmarks.startup
 
 lint: install
 	$(PY) -m ruff check agrl tests benchmarks

@@ -221,3 +221,20 @@ def test_race_arguments():
                 ["--sb3-env", "subprocess"], ["--max-decisions", "0"]):
         with pytest.raises(SystemExit):
             parse_args(bad)
+
+
+@pytest.mark.slow
+def test_startup_benchmark_times_the_training_command_and_the_vector_env():
+    """Five real processes (a compilation among them): the slow suite. Format and consistency, no timing claim."""
+    completed = subprocess.run([sys.executable, "-m", "benchmarks.startup", "--repeats", "1", "--rows", "256"],
+                               cwd=REPO, capture_output=True, text=True, timeout=900)
+    assert completed.returncode == 0, completed.stderr[-2000:]
+    records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
+    by_name = {(record["name"], record.get("compile_cache")): record for record in records}
+    assert by_name[("machine", None)]
+    empty, warm = (by_name[("train_first_iteration_seconds", cache)] for cache in ("empty", "warm"))
+    assert 0 < warm["value"] and 0 < empty["value"] and warm["runs"] == 1
+    start = by_name[("gym_vector_env_start_seconds", "warm")]
+    speed = by_name[("gym_vector_env_decisions_per_second", "warm")]
+    assert start["batch"] == speed["batch"] == 256 and speed["compiled"]  # compiled by default from 256 rows
+    assert speed["value"] > 0

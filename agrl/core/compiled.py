@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import os
 import platform
+import re
 import sys
 import warnings
 from collections.abc import Callable
@@ -62,14 +63,14 @@ class CachedRowwiseCompile:
     results depends on row i of the arguments only (so one or no row can be padded or run eagerly); its arguments
     keep their dtype, device and strides from call to call (a call that breaks the compilation's guards raises,
     and :class:`EagerFallback` then runs ``fn`` eagerly), and its first argument (or its first element) is a
-    tensor. It is compiled
-    ahead of its first call (``torch.compile(...).aot_compile``) with the rows as a dynamic dimension, once per
-    dtype and device, and saved in :func:`compile_cache_dir` under a name that hashes ``key`` (the constants the
-    caller passes in, e.g. its parameters), the source of ``fn``'s package, the torch and Python versions and the
-    CPU or GPU. A later process with the same name loads it (under a second, warm, instead of tens of seconds of
-    tracing and compiling); torch's own cache (``TORCHINDUCTOR_CACHE_DIR``) keeps the built kernels it needs,
-    and without them loading rebuilds them (a few seconds). A file that cannot be loaded or no longer fits is
-    compiled again and replaced, with one warning line; a folder that cannot be written is used in memory only.
+    tensor. It is compiled ahead of its first call (``torch.compile(...).aot_compile``) with the rows as a dynamic
+    dimension, once per dtype, device and torch thread count, and saved in :func:`compile_cache_dir` under a name
+    that hashes these, ``key`` (the constants the caller passes in, e.g. its parameters), the source of ``fn``'s
+    package, the torch and Python versions and the processor. A later process with the same name loads it (under
+    a second, instead of tens of seconds of tracing and compiling); torch's own cache (``TORCHINDUCTOR_CACHE_DIR``)
+    keeps the built kernels it needs, and without them loading rebuilds them (a few seconds). A file that cannot be
+    loaded or no longer fits is compiled again and replaced, with one warning line; a folder that cannot be
+    written is used in memory only.
 
     The files hold code, like torch's own compile cache: they are written by this class for this user and are
     never meant to be shared (the folder is created private).
@@ -85,7 +86,8 @@ class CachedRowwiseCompile:
 
     def __call__(self, *args: Any) -> Any:
         first = _first_tensor(args)
-        signature = (first.dtype, first.device)
+        # torch's thread count is part of what a compilation guards (its kernels are built for it).
+        signature = (first.dtype, first.device, torch.get_num_threads())
         compiled = self._compiled.get(signature)
         rows = first.shape[0]
         if compiled is not None and rows > 1:
@@ -138,7 +140,7 @@ class CachedRowwiseCompile:
                     os.utime(path)  # recently used: kept by _prune
                     return compiled, result
                 except Exception as error:  # noqa: BLE001 - a damaged or stale file is compiled again
-                    reason = (str(error).strip().splitlines() or [""])[0]
+                    reason = _one_line(error)
                     warnings.warn(f"the compiled {self.what} in {path} could not be used ({type(error).__name__}: "
                                   f"{reason}); compiling it again", RuntimeWarning, stacklevel=4)
             compiled = self._compile(args)
@@ -182,6 +184,13 @@ def _prune(folder: Path) -> None:
         Path(f"{file}.lock").unlink(missing_ok=True)
 
 
+def _one_line(error: Exception) -> str:
+    """A failed guard's reason (torch's message spans lines), or the error's first line."""
+    text = str(error).strip()
+    guard = re.search(r"verbose_code_parts=\[(.*?)\]", text, re.DOTALL)
+    return " ".join((guard.group(1) if guard else (text.splitlines() or [""])[0]).split())
+
+
 def _first_tensor(value: Any) -> torch.Tensor:
     while not isinstance(value, torch.Tensor):
         value = value[0]
@@ -190,7 +199,7 @@ def _first_tensor(value: Any) -> torch.Tensor:
 
 def _device_description(signature: tuple) -> str:
     """The processor the kernels are built for: the CPU's vector instructions, and the GPU's model if any."""
-    _, device = signature
+    _, device, _ = signature
     described = torch.backends.cpu.get_cpu_capability()
     if device.type == "cuda":
         described += f" {torch.cuda.get_device_name(device)} {torch.cuda.get_device_capability(device)}"

@@ -4,6 +4,7 @@ and the loss's use of them are tested in tests/core/test_simulation.py and tests
 from __future__ import annotations
 
 import os
+import warnings
 
 import pytest
 import torch
@@ -83,7 +84,8 @@ def test_a_compilation_is_kept_on_disk_and_loaded_by_the_next_one(cache):
     _assert_matches_eager(again, 5)
     assert again.loaded_from == kept
     other = CachedRowwiseCompile(_rowwise, "the test function", key="step 0.25")  # other constants: another file
-    assert other.cache_file((torch.float32, torch.device("cpu"))) != kept
+    _assert_matches_eager(other, 5)
+    assert other.loaded_from is None and len(list(cache.glob("*.bin"))) == 2
 
 
 def test_a_damaged_compilation_is_compiled_again_with_one_line(cache):
@@ -131,3 +133,20 @@ def test_the_least_recently_used_compilations_beyond_the_limit_are_removed(cache
     CachedRowwiseCompile(_rowwise, "the test function", key="new")(*_rows(8), 0.5)
     kept = set(cache.glob("*.bin"))
     assert len(kept) == KEPT_COMPILATIONS and old[0] not in kept and old[1] in kept
+
+
+def test_each_thread_count_has_its_own_compilation(cache):
+    """torch's compilation guards the thread count its kernels were built for: make train's two stages run on two
+    and one threads, and neither may replace the other's file."""
+    threads = torch.get_num_threads()
+    try:
+        for count in (1, 2, 1):
+            torch.set_num_threads(count)
+            function = CachedRowwiseCompile(_rowwise, "the test function", key="threads")
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")  # no "could not be used"
+                _assert_matches_eager(function, 8)
+        assert function.loaded_from is not None  # the third: the first's file, loaded
+        assert len(list(cache.glob("*.bin"))) == 2
+    finally:
+        torch.set_num_threads(threads)
