@@ -83,7 +83,8 @@ def run(cfg: DictConfig) -> dict:
 
 
 @hydra.main(version_base="1.3", config_path="pkg://agrl.conf", config_name="config")
-def main(cfg: DictConfig) -> None:
+def main(cfg: DictConfig) -> float:
+    """Train, print the final evaluation, and return the run's cost to a sweeper (``search``; lower is better)."""
     if hasattr(signal, "SIGXFSZ"):  # over a file-size limit (ulimit -f): a failed write (one line), not a kill
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     try:
@@ -104,6 +105,7 @@ def main(cfg: DictConfig) -> None:
             sys.exit(3)
         raise
     print(json.dumps(summary))
+    return summary["search_objective"]
 
 
 def check_inputs(config) -> None:

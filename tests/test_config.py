@@ -193,6 +193,9 @@ def test_wrong_type_names_the_value():
         (("method=reuse", "ppo.collector_workers=2"), "ppo.collector_workers=2"),
         (("method=pretrained", "method.baseline=null"), "method.baseline=None"),
         (("simulation.initial_state.min_horizontal_distance=900",), "simulation.initial_state.min_horizontal_distance"),
+        (("search.success=0",), "search.success=0.0"),
+        (("search.max_instructions=-1",), "search.max_instructions=-1.0"),
+        (("search.penalty_seconds=-60",), "search.penalty_seconds=-60.0"),
     ],
 )
 def test_config_errors_are_one_line_and_name_the_key(overrides, named):

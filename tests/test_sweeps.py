@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import pytest
+import yaml
 
 LAUNCHERS = ("joblib", "submitit_local")
 
@@ -34,3 +35,23 @@ def test_launcher_runs_every_job_of_a_sweep(sweeps, launcher):
     assert sorted(summaries) == ["seed_0", "seed_1"]
     assert [summaries[name]["seed"] for name in ("seed_0", "seed_1")] == [0, 1]
     assert all(summary["decisions_trained"] == 512 and summary["episodes"] == 4 for summary in summaries.values())
+
+
+@pytest.mark.slow
+def test_a_recipe_search_runs_optuna_trials_and_reports_the_best(run_cli, tiny_args, tmp_path):
+    """+experiment=recipe_search through Hydra's Optuna sweeper (the `search` extra): three tiny trials, each
+    returning its search objective, and the study's best among them."""
+    pytest.importorskip("hydra_plugins.hydra_optuna_sweeper")
+    sweep = tmp_path / "search"
+    arguments = [arg for arg in tiny_args({"ppo.total_frames": 512, "eval.episodes": 4})
+                 if not arg.startswith(("ppo.minibatch_size=", "ppo.epochs="))]
+    result = run_cli("train", "+experiment=recipe_search", "hydra.sweeper.n_trials=3", f"hydra.sweep.dir={sweep}",
+                     "ppo.minibatch_size=choice(128,256)", *arguments, "-m", timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    objectives = {path.parent.parent.name: json.loads(path.read_text())["search_objective"]
+                  for path in sweep.glob("trial_*/eval/eval.json")}
+    assert sorted(objectives) == ["trial_0", "trial_1", "trial_2"]
+    best = yaml.safe_load((sweep / "optimization_results.yaml").read_text())
+    assert best["best_value"] == pytest.approx(min(objectives.values()))
+    assert set(best["best_params"]) == {"ppo.learning_rate", "ppo.epochs", "ppo.minibatch_size", "agent.actor_hidden",
+                                        "agent.critic_hidden", "reward.switch_cost"}

@@ -93,6 +93,11 @@ def test_tiny_run_prints_json_summary_on_last_line(tiny_run):
     for key in ("success_rate", "instructions_per_episode", "ms_per_instruction", "outcomes"):
         assert key in summary
     assert summary["ms_per_instruction"] > 0
+    # What a sweeper reads (the config's search section): this untrained run misses 99.5 %, so it pays 60 s per
+    # point of success short (and per instruction over 7) on top of its seconds of training.
+    short, over = 100 * max(0.0, 0.995 - summary["success_rate"]), max(0.0, summary["instructions_per_episode"] - 7)
+    assert summary["search_objective"] == pytest.approx(summary["training_wall_time_s"] + 60 * (short + over))
+    assert short > 0
     saved = json.loads((tiny_run.run_dir / "eval" / "eval.json").read_text())
     assert json.dumps(summary, sort_keys=True) == json.dumps(saved, sort_keys=True)  # NaN == NaN as text
 
@@ -288,7 +293,7 @@ ONE_LINE_ERRORS = {
                                                   "learning_rate")),
     "ppo-key": (("ppo.num_env=64",), ("ppo.num_env=64 is not allowed", "ppo has no key 'num_env'", "num_envs")),
     "task-foo": (("task=foo",), ("task=foo is not allowed: one of curved, fixed, irregular, uniform",)),
-    "experiment-foo": (("+experiment=fsat",), ("+experiment=fsat is not allowed: one of fast, switch_finetune",)),
+    "experiment-foo": (("+experiment=fsat",), ("+experiment=fsat is not allowed: one of fast, recipe_search, switch_finetune",)),
     "seed-type": (("seed=abc",), ("seed=abc is not allowed", "could not be converted to Integer")),
     "negative-speed": (("task=uniform", "speed=-5"), ("speed=-5.0 is not allowed", "in (0, 1000] m/s")),
     "zero-envs": (("ppo.num_envs=0",), ("ppo.num_envs=0 is not allowed",)),

@@ -157,6 +157,22 @@ class EvaluationConfig:
 
 
 @dataclass
+class SearchConfig:
+    """What ``python -m agrl.train`` returns to a Hydra sweeper (``+experiment=recipe_search``): seconds of training
+    to an agent that meets ``success`` and ``max_instructions`` on the final evaluation, plus ``penalty_seconds``
+    per percentage point of success short and per instruction over (:func:`agrl.rl.evaluation.search_objective`)."""
+
+    success: float = MISSING  # fraction of the final evaluation's episodes
+    max_instructions: float = MISSING  # instructions per episode
+    penalty_seconds: float = MISSING  # s per point of success short and per instruction over
+
+    def __post_init__(self) -> None:
+        require(0 < self.success <= 1, "search.success", self.success, "in (0, 1]")
+        require(self.max_instructions > 0, "search.max_instructions", self.max_instructions, "> 0")
+        require(self.penalty_seconds >= 0, "search.penalty_seconds", self.penalty_seconds, ">= 0 s")
+
+
+@dataclass
 class CurriculumConfig:
     """Start-box curriculum: training episodes start in a shrunken box around the destination that grows
     as training succeeds (a reverse curriculum); evaluation always uses the full box."""
@@ -185,6 +201,7 @@ class TrainConfig:
     method: Any = MISSING  # a MethodConfig subclass: the schema of the method it names (method_config)
     eval: EvaluationConfig = MISSING
     curriculum: CurriculumConfig = MISSING
+    search: SearchConfig = MISSING
     speed: float | None = MISSING
     radius: float | None = MISSING
     seed: int = MISSING

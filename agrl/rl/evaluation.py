@@ -131,6 +131,17 @@ def summarise(records: EpisodeRecords) -> dict[str, float | int | dict]:
     }
 
 
+def search_objective(summary: dict[str, Any], success: float, max_instructions: float,
+                     penalty_seconds: float) -> float:
+    """A recipe's cost to a sweeper (the ``search`` config): its seconds of training if the final evaluation's
+    ``summary`` has at least ``success`` and at most ``max_instructions`` per episode; else those seconds plus
+    ``penalty_seconds`` per percentage point of success short and per instruction over, so that a search is led
+    towards the target rather than to the shortest run."""
+    short = max(0.0, success - summary["success_rate"]) * 100
+    over = max(0.0, summary["instructions_per_episode"] - max_instructions)
+    return summary["training_wall_time_s"] + penalty_seconds * (short + over)
+
+
 @torch.no_grad()
 def instruction_latency_ms(env: GuidanceEnv, actor, queries: int = 200) -> float:
     """Median wall time (ms) to produce one instruction for one aircraft: observation + policy.

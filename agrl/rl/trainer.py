@@ -35,7 +35,7 @@ from agrl.envs.guidance import GuidanceEnv
 from agrl.plots import plot_trajectories, trajectory_image
 from agrl.rl.checkpoint import CheckpointError, load_module_state, save_checkpoint
 from agrl.rl.curriculum import SharedScaleGuidanceEnv, promoted_scale, shared_scale, start_distribution
-from agrl.rl.evaluation import instruction_latency_ms, run_episodes, summarise, write_evaluation
+from agrl.rl.evaluation import instruction_latency_ms, run_episodes, search_objective, summarise, write_evaluation
 from agrl.rl.metrics import MetricsLog, episode_statistics, progress_line
 from agrl.rl.models import make_actor, make_critic
 from agrl.rl.ppo import (
@@ -431,6 +431,9 @@ class Trainer:
             "seed": self.cfg.seed, "evaluation_seed": self.eval_seed, "iterations": self.counters.iteration,
             "decisions_trained": self.counters.frames, "training_wall_time_s": round(self.counters.wall_time, 1),
         })
+        search = self.cfg.search
+        summary["search_objective"] = search_objective(summary, search.success, search.max_instructions,
+                                                       search.penalty_seconds)
         write_evaluation(self.run_dir / "eval", summary, records)
         plot_trajectories(records, self.run_dir / "eval" / "trajectories.png", self.params.simulation.airspace,
                           title=f"{task_label(self.cfg.task)}, {self.cfg.method.name}: 10 evaluation episodes")

@@ -21,8 +21,9 @@ from agrl.rl.metrics import flatten_config
 ROOT = Path(__file__).resolve().parents[2]
 #: make train's stage 1 as shipped (checkpoint=baseline-stage1), trained on the same defaults.
 STAGE_ONE_FILE = SHIPPED_AGENTS["baseline-stage1"].file
-#: Set per invocation, not by the recipe: where the run starts from and whether a progress bar is drawn.
-NOT_THE_RECIPE = {"progress", "method.baseline"}
+#: Set per invocation, not by the recipe: where the run starts from, whether a progress bar is drawn, and what the
+#: run returns to a sweeper (the search section changes nothing in training).
+NOT_THE_RECIPE = {"progress", "method.baseline", "search.success", "search.max_instructions", "search.penalty_seconds"}
 #: Options added after the shipped files were trained, at the value that trains exactly as before: a file without
 #: the key was trained with that value. Any other value of such an option is still a difference.
 #: ``eval.confirm_episodes``: stage 1's confirmation holds where its periodic evaluation stopped it (``make train``

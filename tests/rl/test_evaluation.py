@@ -18,6 +18,7 @@ from agrl.rl.evaluation import (
     EpisodeRecords,
     instruction_latency_ms,
     run_episodes,
+    search_objective,
     summarise,
     wilson_interval,
 )
@@ -234,3 +235,20 @@ def test_instruction_latency_is_the_median_of_the_timed_single_aircraft_queries(
 def test_instruction_latency_of_a_real_query_is_a_finite_positive_time(params, actor):
     latency = instruction_latency_ms(GuidanceEnv(params, num_envs=4, seed=0), actor, queries=20)
     assert math.isfinite(latency) and latency > 0.0
+
+
+def _summary(success_rate: float, instructions: float, seconds: float) -> dict:
+    return {"success_rate": success_rate, "instructions_per_episode": instructions, "training_wall_time_s": seconds}
+
+
+def test_a_run_that_meets_the_search_target_costs_its_training_seconds():
+    assert search_objective(_summary(0.996, 6.9, 75.5), 0.995, 7.0, 60.0) == 75.5
+    assert search_objective(_summary(0.995, 7.0, 75.5), 0.995, 7.0, 60.0) == 75.5  # the target itself meets it
+
+
+def test_a_run_that_misses_pays_per_point_of_success_and_per_instruction():
+    # 0.5 points of success short and 1.5 instructions over: 2 x 60 s more than its 40 s.
+    assert search_objective(_summary(0.990, 8.5, 40.0), 0.995, 7.0, 60.0) == pytest.approx(40.0 + 60.0 * 2.0)
+    # A shorter run that misses scores worse than a longer one that meets the target a minute later.
+    assert search_objective(_summary(0.985, 6.0, 30.0), 0.995, 7.0, 60.0) > search_objective(
+        _summary(0.996, 6.0, 89.0), 0.995, 7.0, 60.0)
