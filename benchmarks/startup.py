@@ -16,7 +16,6 @@ speed claim.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import statistics
 import subprocess
