@@ -166,7 +166,7 @@ class CachedRowwiseCompile:
             compiled.save_compiled_function(str(partial))
             os.replace(partial, path)  # readers see the old file or the whole new one
             _prune(path.parent)
-        except OSError as error:
+        except Exception as error:  # noqa: BLE001 - a full disk or a compilation torch cannot save: still usable here
             partial.unlink(missing_ok=True)
             warnings.warn(f"cannot keep the compiled {self.what} in {path} ({error}); it is compiled again in the "
                           "next process", RuntimeWarning, stacklevel=5)

@@ -150,3 +150,16 @@ def test_each_thread_count_has_its_own_compilation(cache):
         assert len(list(cache.glob("*.bin"))) == 2
     finally:
         torch.set_num_threads(threads)
+
+
+def test_a_compilation_that_cannot_be_saved_is_still_used(cache, monkeypatch):
+    """A full disk (or anything else that stops the file) costs the next process a compilation, not this one."""
+    def no_space(self, *args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(os, "replace", lambda *args: no_space(None))
+    function = CachedRowwiseCompile(_rowwise, "the test function", key="full disk")
+    with pytest.warns(RuntimeWarning, match="cannot keep the compiled the test function in .*No space left"):
+        _assert_matches_eager(function, 8)
+    assert not list(cache.glob("*.bin")) and not list(cache.glob("*.partial"))  # no half-written file left
+    _assert_matches_eager(function, 16)  # compiled, in memory
