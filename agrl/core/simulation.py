@@ -125,7 +125,7 @@ class DecisionSimulator:
     ``compile=True`` fuses ``substeps_per_call`` integration steps into one kernel with
     ``torch.compile`` (it must divide the 150 steps of a decision); if that is unavailable
     (no compiler, unsupported platform) it warns once and runs eagerly, one step at a time.
-    One compilation serves every batch size; it takes about 20 s the first time and is kept
+    One compilation serves every batch size; it takes 20-30 s the first time and is kept
     in the user's compile cache (:func:`agrl.core.compiled.compile_cache_dir`), from which a
     later process loads it in under a second.
     """

@@ -53,7 +53,7 @@ class GuidanceVectorEnv(VectorEnv):
     """``num_envs`` guidance rows stepped together; the single env's keyword arguments plus ``device``.
 
     ``compile=True`` fuses the 20 ms step with ``torch.compile``: several times faster from a few hundred rows
-    on, after one compilation of 20-40 s that later processes load from the user's compile cache in about a
+    on, after one compilation of 20-30 s that later processes load from the user's compile cache in about a
     second (:func:`agrl.core.compiled.compile_cache_dir`). The default, ``None``, compiles from
     :data:`COMPILED_FROM_ROWS` rows on. ``info`` has the single env's keys, one entry per
     row (``outcome`` as strings, ``aircraft_state`` ``(num_envs, 7)``, ...), each with gymnasium's

@@ -110,12 +110,13 @@ def test_a_cache_that_cannot_be_written_compiles_in_memory(tmp_path, monkeypatch
         _assert_matches_eager(CachedRowwiseCompile(_rowwise, "the test function", key="blocked"), 8)
 
 
-def test_off_keeps_nothing(monkeypatch):
+def test_off_keeps_nothing(monkeypatch, tmp_path):
     monkeypatch.setenv(CACHE_VARIABLE, "off")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))  # where the default folder would be
     assert compile_cache_dir() is None
     function = CachedRowwiseCompile(_rowwise, "the test function", key="off")
     _assert_matches_eager(function, 8)
-    assert function.loaded_from is None
+    assert function.loaded_from is None and not any(tmp_path.iterdir())
 
 
 def test_the_default_folder_is_the_users_cache(monkeypatch, tmp_path):
