@@ -1,8 +1,9 @@
 """Shared fixtures for the training / evaluation tests.
 
 * ``tiny_args`` builds command-line overrides for tiny training runs (32 envs x 16 decisions = 512 decisions
-  per iteration, a coarse 0.1 s integration step and at most 30 decisions per episode, so that an iteration
-  and an evaluation take well under a second with the eager simulator).
+  per iteration, a coarse 0.3 s integration step and at most 30 decisions per episode, so that an iteration
+  and an evaluation take well under a second with the eager simulator; no trajectory images but the shared
+  run's).
 * ``compose_train`` composes ``conf/`` in-process and validates it (``agrl.config.load_config``).
 * ``run_cli`` runs ``python -m agrl.<module>`` in a subprocess (one torch thread, see below); ``run_cli.checks``
   runs only its checks before Hydra, in process (a refused command line costs no interpreter start-up).
@@ -52,19 +53,21 @@ TINY_OVERRIDES = {
     "eval.periodic_episodes": "8",
     "eval.episodes": "16",
     "simulation.compile": "false",
-    "simulation.integration_step": "0.1",
+    "simulation.integration_step": "0.3",
     "simulation.max_decisions": "30",
     "checkpoint_interval": "1",
     "progress": "false",
     "curriculum.enabled": "false",
     "target_success": "0",
     "eval.confirm_episodes": "0",
+    "eval.trajectory_image": "false",
 }
 FRAMES_PER_ITERATION = 32 * 16
 
 #: The shared run: 4 iterations, periodic evaluation after iterations 2 and 4.
 TINY_RUN_ITERATIONS = 4
-TINY_RUN_CHANGES = {"ppo.total_frames": str(TINY_RUN_ITERATIONS * FRAMES_PER_ITERATION), "eval.interval": "2"}
+TINY_RUN_CHANGES = {"ppo.total_frames": str(TINY_RUN_ITERATIONS * FRAMES_PER_ITERATION), "eval.interval": "2",
+                    "eval.trajectory_image": "true"}
 
 
 def _tiny_args(changes: dict[str, object] | None = None) -> list[str]:

@@ -63,9 +63,9 @@ def test_check_env_specs(kind, make_params):
 )
 def test_reward_parts_sum_to_the_reward(kind, reward_changes, paper_parameters, make_params):
     """The reward is the sum of its parts, each paid where it should be. The parts are computed once per decision,
-    whatever the integration step: a 0.1 s step (30 per decision, as the tiny training runs) instead of 20 ms."""
+    whatever the integration step: a 0.3 s step (10 per decision, as the tiny training runs) instead of 20 ms."""
     reward = dataclasses.replace(paper_parameters.reward, **reward_changes)
-    simulation = dataclasses.replace(paper_parameters.simulation, integration_step=0.1)
+    simulation = dataclasses.replace(paper_parameters.simulation, integration_step=0.3)
     env = GuidanceEnv(make_params(kind, reward=reward, simulation=simulation, max_decisions=8), num_envs=6, seed=3)
     td = env.rollout(20, policy=cycling_policy, break_when_any_done=False)
     step = td["next"]

@@ -165,9 +165,9 @@ def test_equal_update_cost_gives_a_reuse_update_the_minibatches_of_a_plain_itera
     with the switch."""
     import math
 
-    # A 0.1 s integration step: the relabelling's re-plays cost a fifth of the default 0.02 s one.
+    # A 0.3 s integration step: the relabelling's re-plays cost a fifteenth of the default 0.02 s one.
     overrides = ["method=reuse", "ppo.num_envs=16", "ppo.steps_per_env=8", "ppo.minibatch_size=48", "ppo.epochs=3",
-                 "ppo.total_frames=128", "simulation.compile=false", "simulation.integration_step=0.1",
+                 "ppo.total_frames=128", "simulation.compile=false", "simulation.integration_step=0.3",
                  "eval.interval=0", "eval.episodes=4", "progress=false", "seed=3"]
     steps, rows = {}, {}
     for equal in (False, True):

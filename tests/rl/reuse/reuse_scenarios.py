@@ -38,7 +38,7 @@ from agrl.rl.reuse import (
 )
 
 BUDGET = 20  # decisions per episode: keeps the eager simulation cheap
-INTEGRATION_STEP = 0.1  # s: 30 integration steps per 3 s decision (conf's 0.02 s: 150), as in the tiny runs
+INTEGRATION_STEP = 0.3  # s: 10 integration steps per 3 s decision (conf's 0.02 s: 150), as in the tiny runs
 NUM_ENVS = 4
 STEP = 150.0  # m the 50 m/s destination moves in one 3 s decision
 START = ((-6_000.0, -4_000.0), 0.0, 100.0)  # aircraft start: x range, y, z (m); heading +x, 200 m/s
