@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import itertools
+import math
+from collections.abc import Iterator
+
 import torch
 from tensordict import TensorDictBase
-from torchrl.data import TensorDictReplayBuffer
 from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
 
@@ -67,28 +70,47 @@ def make_optimizer(loss: ClipPPOLoss, learning_rate: float) -> torch.optim.Adam:
 
 def update_fields(loss: ClipPPOLoss) -> list:
     """The fields of a collected row that the PPO update reads (the rest stays out of the replay buffer:
-    every minibatch gathers each stored field, so fewer fields make sampling cheaper)."""
+    each pass over the rows gathers every stored field, so fewer fields make it cheaper)."""
     keys = loss.tensor_keys
     fields = [*loss.actor_network.in_keys, *loss.critic_network.in_keys, keys.action, keys.sample_log_prob,
               keys.advantage, keys.value_target, keys.value]
     return list(dict.fromkeys(fields))
 
 
+def minibatches(rows: TensorDictBase, size: int) -> Iterator[TensorDictBase]:
+    """Pass after pass over ``rows``, each in a new random order, as contiguous slices of one permuted copy.
+
+    The minibatches TorchRL's ``SamplerWithoutReplacement`` draws from a replay buffer holding ``rows``, in the same
+    order and drawn from the default generator at the same moments (a pass's order when the update starts, the next
+    one's as the last minibatch of a pass is handed out; the last minibatch of a pass is smaller), so a run's numbers
+    are those of the buffer-sampled update; but each field is gathered once per pass instead of once per minibatch.
+    """
+    count = rows.shape[0]
+    order = torch.randperm(count, device=rows.device)
+    while True:
+        shuffled = rows[order]
+        for start in range(0, count, size):
+            if start + size >= count:
+                order = torch.randperm(count, device=rows.device)
+            yield shuffled[start:start + size]
+
+
 def ppo_update(
     loss: ClipPPOLoss,
     optimizer: torch.optim.Optimizer,
-    buffer: TensorDictReplayBuffer,
+    rows: TensorDictBase,
+    minibatch_size: int,
     epochs: int,
     max_grad_norm: float,
     where: str,
     max_updates: int | None = None,
     target_kl: float = 0.0,
 ) -> dict[str, float]:
-    """``epochs`` passes over the buffer in minibatches, stopping after ``max_updates`` minibatches if given, or
-    before the first minibatch whose approximate KL from the collecting policy exceeds ``1.5 * target_kl`` if
-    ``target_kl`` > 0 (stable-baselines3's rule, on the loss's own ``kl_approx``: the mean of the stored minus the
-    current log-probability of the minibatch's actions); the mean of each logged loss term, and ``minibatches``:
-    the optimiser steps taken.
+    """``epochs`` passes over the flat ``rows`` in minibatches (:func:`minibatches`), stopping after
+    ``max_updates`` minibatches if given, or before the first minibatch whose approximate KL from the collecting
+    policy exceeds ``1.5 * target_kl`` if ``target_kl`` > 0 (stable-baselines3's rule, on the loss's own
+    ``kl_approx``: the mean of the stored minus the current log-probability of the minibatch's actions); the mean of
+    each logged loss term, and ``minibatches``: the optimiser steps taken.
 
     Raises :class:`TrainingDiverged` (naming ``where`` and the update) on a non-finite loss or gradient,
     before the optimiser step, so the parameters stay finite.
@@ -97,30 +119,26 @@ def ppo_update(
     updates = 0
     parameters = list(loss.parameters())  # once: loss.parameters() walks every submodule of actor and critic
     kl_limit = 1.5 * target_kl if target_kl > 0 else None
-    stop = False
-    for _ in range(epochs):
-        for batch in buffer:
-            if max_updates is not None and updates >= max_updates:
-                break  # the sampler's unfinished pass is dropped by the next update's buffer.empty()
-            losses = loss(batch)
-            if kl_limit is not None and float(losses["kl_approx"]) > kl_limit:
-                stop = True  # the policy has moved far enough from the one that collected (or relabelled) the rows
-                break
-            total = total_loss(losses)
-            if not torch.isfinite(total):
-                raise TrainingDiverged(f"non-finite loss ({total.item()}) {where}, update {updates + 1}")
-            optimizer.zero_grad(set_to_none=True)
-            total.backward()
-            gradient_norm = torch.nn.utils.clip_grad_norm_(parameters, max_grad_norm)
-            if not torch.isfinite(gradient_norm):
-                raise TrainingDiverged(f"non-finite gradient {where}, update {updates + 1}")
-            optimizer.step()
-            updates += 1
-            for key in LOGGED_LOSS_TERMS:
-                if key in losses.keys():
-                    totals[key] = totals.get(key, 0.0) + float(losses[key].detach().float().mean())
-        if stop:
-            break
+    planned = epochs * math.ceil(rows.shape[0] / minibatch_size)
+    if max_updates is not None:
+        planned = min(planned, max_updates)
+    for batch in itertools.islice(minibatches(rows, minibatch_size), planned):
+        losses = loss(batch)
+        if kl_limit is not None and float(losses["kl_approx"]) > kl_limit:
+            break  # the policy has moved far enough from the one that collected (or relabelled) the rows
+        total = total_loss(losses)
+        if not torch.isfinite(total):
+            raise TrainingDiverged(f"non-finite loss ({total.item()}) {where}, update {updates + 1}")
+        optimizer.zero_grad(set_to_none=True)
+        total.backward()
+        gradient_norm = torch.nn.utils.clip_grad_norm_(parameters, max_grad_norm)
+        if not torch.isfinite(gradient_norm):
+            raise TrainingDiverged(f"non-finite gradient {where}, update {updates + 1}")
+        optimizer.step()
+        updates += 1
+        for key in LOGGED_LOSS_TERMS:
+            if key in losses.keys():
+                totals[key] = totals.get(key, 0.0) + float(losses[key].detach().float().mean())
     return {**{key: value / max(updates, 1) for key, value in totals.items()}, "minibatches": float(updates)}
 
 

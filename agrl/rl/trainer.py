@@ -28,7 +28,6 @@ from omegaconf import OmegaConf
 from tensordict import TensorDictBase
 from torchrl.collectors import Collector, MultiSyncCollector
 from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
-from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
 
 from agrl.config import TrainConfig, method_class, task_label, to_guidance_parameters
 from agrl.envs.guidance import GuidanceEnv
@@ -162,10 +161,10 @@ class Trainer:
         self.update_loss = CompiledLoss(self.loss) if ppo.compile_loss else self.loss
 
     def _make_buffer(self) -> TensorDictReplayBuffer:
+        """The rows of one update, through the method's transform (policy reuse rewrites and adds rows there); the
+        update reads them all at once and slices its minibatches itself (agrl.rl.ppo.minibatches)."""
         storage = LazyTensorStorage(self.method.storage_rows(self.frames_per_batch), device=self.device)
-        return TensorDictReplayBuffer(storage=storage, sampler=SamplerWithoutReplacement(),
-                                      batch_size=self.cfg.ppo.minibatch_size,
-                                      transform=self.method.buffer_transform(self))
+        return TensorDictReplayBuffer(storage=storage, transform=self.method.buffer_transform(self))
 
     def _initial_counters(self) -> Counters:
         curriculum = self.cfg.curriculum
@@ -242,8 +241,8 @@ class Trainer:
 
     def learn(self, data: TensorDictBase) -> tuple[TensorDictBase, dict[str, float], float]:
         """One PPO update from a collected batch: GAE, the replay buffer (through the method's transform, if it
-        has one), then epochs of minibatches. Returns the batch with its advantages, the mean loss terms and the
-        seconds spent filling the buffer (the relabelling, for policy reuse)."""
+        has one), then epochs of minibatches of its rows. Returns the batch with its advantages, the mean loss
+        terms and the seconds spent filling the buffer (the relabelling, for policy reuse)."""
         with torch.no_grad():
             data = self.advantage(data)
         self.buffer.empty()
@@ -253,9 +252,9 @@ class Trainer:
         ppo = self.cfg.ppo
         max_updates = self.method.max_updates(self.frames_per_batch, ppo.epochs, ppo.minibatch_size)
         try:
-            losses = ppo_update(self.update_loss, self.optimizer, self.buffer, ppo.epochs, ppo.max_grad_norm,
-                                where=f"at iteration {self.counters.iteration + 1}", max_updates=max_updates,
-                                target_kl=ppo.target_kl)
+            losses = ppo_update(self.update_loss, self.optimizer, self.buffer[:], ppo.minibatch_size, ppo.epochs,
+                                ppo.max_grad_norm, where=f"at iteration {self.counters.iteration + 1}",
+                                max_updates=max_updates, target_kl=ppo.target_kl)
         except TrainingDiverged as error:
             raise TrainingDiverged(f"{error}; last good checkpoint kept in {self.checkpoint_dir}") from None
         return data, losses, fill_time

@@ -1,6 +1,8 @@
-"""PPO pieces: the learning-rate schedule, the compiled loss and the update's minibatch cap (agrl.rl.ppo)."""
+"""PPO pieces: the learning-rate schedule, the compiled loss, the update's minibatches and its caps (agrl.rl.ppo)."""
 
 from __future__ import annotations
+
+import itertools
 
 import pytest
 import torch
@@ -118,43 +120,96 @@ def _adam_steps(optimizer) -> int:
     return int(next(iter(optimizer.state.values()))["step"])
 
 
-@pytest.mark.parametrize(("max_updates", "expected"), [(None, 4 * 6), (10, 10), (100, 4 * 6)])
-def test_ppo_update_stops_after_max_updates_minibatches(max_updates, expected):
-    """6 minibatches per pass over 3 072 rows, 4 passes: ``max_updates`` cuts them short (never lengthens them)."""
+def _replay_buffer_update(loss, optimizer, rows, minibatch_size: int, epochs: int, max_grad_norm: float) -> None:
+    """The update as it was before :func:`agrl.rl.ppo.minibatches`: epochs of minibatches sampled from a
+    TorchRL replay buffer without replacement, each one loss, backward, clip and Adam step."""
     from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
     from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
 
+    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(len(rows)), sampler=SamplerWithoutReplacement(),
+                                    batch_size=minibatch_size)
+    buffer.extend(rows)
+    parameters = list(loss.parameters())
+    for _ in range(epochs):
+        for batch in buffer:
+            optimizer.zero_grad(set_to_none=True)
+            total_loss(loss(batch)).backward()
+            torch.nn.utils.clip_grad_norm_(parameters, max_grad_norm)
+            optimizer.step()
+
+
+def test_minibatches_are_those_a_replay_buffer_samples_from_the_same_draws():
+    """Same rows, same order, same sizes (a smaller last one) as TorchRL's sampler without replacement, and the
+    default generator left in the same state (the sampler draws a pass's successor as it hands out its last
+    minibatch), so the rest of a run draws the same numbers."""
+    from tensordict import TensorDict
+    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
+    from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
+
+    from agrl.rl.ppo import minibatches
+
+    rows = TensorDict({"x": torch.arange(3000.0), "y": torch.randn(3000, 3)}, [3000])
+    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(4096), sampler=SamplerWithoutReplacement(),
+                                    batch_size=512)
+    buffer.extend(rows)
+    torch.manual_seed(5)
+    sampled = [batch.exclude("index") for _ in range(2) for batch in buffer]
+    after_buffer = torch.get_rng_state()
+    torch.manual_seed(5)
+    sliced = list(itertools.islice(minibatches(rows, 512), 12))
+    assert torch.equal(torch.get_rng_state(), after_buffer)
+    assert [len(batch) for batch in sliced] == [512] * 5 + [440] + [512] * 5 + [440]
+    assert len(sampled) == len(sliced)
+    for old, new in zip(sampled, sliced, strict=True):
+        assert (old == new).all()
+    assert not torch.equal(sliced[0]["x"], sliced[6]["x"])  # each pass draws its own order
+
+
+def test_ppo_update_learns_what_the_replay_buffer_update_learned():
+    """The same parameters, bit for bit, after 4 epochs over fixed rows as the buffer-sampled update, and the
+    same state of the default generator after it."""
+    from agrl.rl.ppo import make_optimizer, ppo_update
+
+    results, generator_states = [], []
+    for update in ("buffer", "slices"):
+        loss, batch = _loss_and_batch(3000)
+        optimizer = make_optimizer(loss, 1e-3)
+        torch.manual_seed(11)
+        if update == "buffer":
+            _replay_buffer_update(loss, optimizer, batch, 512, epochs=4, max_grad_norm=0.5)
+        else:
+            ppo_update(loss, optimizer, batch, 512, epochs=4, max_grad_norm=0.5, where="here")
+        results.append([parameter.detach().clone() for parameter in loss.parameters()])
+        generator_states.append(torch.get_rng_state())
+    before = _loss_and_batch(3000)[0]
+    assert any(not torch.equal(old, new) for old, new in zip(before.parameters(), results[0], strict=True))
+    for old, new in zip(*results, strict=True):
+        assert torch.equal(old, new)
+    assert torch.equal(*generator_states)
+
+
+@pytest.mark.parametrize(("max_updates", "expected"), [(None, 4 * 6), (10, 10), (100, 4 * 6)])
+def test_ppo_update_stops_after_max_updates_minibatches(max_updates, expected):
+    """6 minibatches per pass over 3 072 rows, 4 passes: ``max_updates`` cuts them short (never lengthens them)."""
     from agrl.rl.ppo import make_optimizer, ppo_update
 
     loss, batch = _loss_and_batch(3072)
-    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(3072), sampler=SamplerWithoutReplacement(),
-                                    batch_size=512)
-    buffer.extend(batch)
     optimizer = make_optimizer(loss, 1e-4)
-    ppo_update(loss, optimizer, buffer, epochs=4, max_grad_norm=0.5, where="here", max_updates=max_updates)
+    losses = ppo_update(loss, optimizer, batch, 512, epochs=4, max_grad_norm=0.5, where="here",
+                        max_updates=max_updates)
     assert _adam_steps(optimizer) == expected
-    # The next update starts a fresh pass: an emptied and refilled buffer yields all its minibatches again.
-    buffer.empty()
-    buffer.extend(batch)
-    ppo_update(loss, optimizer, buffer, epochs=1, max_grad_norm=0.5, where="here")
-    assert _adam_steps(optimizer) == expected + 6
+    assert losses["minibatches"] == expected
 
 
 @pytest.mark.parametrize(("target_kl", "expected"), [(0.0, 4 * 6), (1e-12, 1), (1e3, 4 * 6)])
 def test_ppo_update_stops_before_the_first_minibatch_past_the_kl_limit(target_kl, expected):
     """The first minibatch's KL is 0 (the policy has not moved yet), so it always steps; with a tiny limit the
     second one, which sees the policy after a step, stops the whole update; a huge limit never does."""
-    from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
-    from torchrl.data.replay_buffers.samplers import SamplerWithoutReplacement
-
     from agrl.rl.ppo import make_optimizer, ppo_update
 
     loss, batch = _loss_and_batch(3072)
-    buffer = TensorDictReplayBuffer(storage=LazyTensorStorage(3072), sampler=SamplerWithoutReplacement(),
-                                    batch_size=512)
-    buffer.extend(batch)
     optimizer = make_optimizer(loss, 1e-3)
-    losses = ppo_update(loss, optimizer, buffer, epochs=4, max_grad_norm=0.5, where="here", target_kl=target_kl)
+    losses = ppo_update(loss, optimizer, batch, 512, epochs=4, max_grad_norm=0.5, where="here", target_kl=target_kl)
     assert _adam_steps(optimizer) == expected
     assert losses["minibatches"] == expected
 
