@@ -181,17 +181,30 @@ def integrate_aircraft(
     limits: AircraftLimits,
     gravity: float = GRAVITY,
 ) -> AircraftState:
-    """Advance equation 3 by one simulation step ``dt`` (semi-implicit Euler).
+    """Advance equation 3 by one simulation step ``dt`` under one maneuver's control law
+    (:func:`load_factors_and_bank`, then :func:`integrate_loads`)."""
+    loads = load_factors_and_bank(state.flight_path_angle, axial_excess, normal_load, turn_direction)
+    return integrate_loads(state, loads, dt, limits, gravity)
+
+
+def integrate_loads(
+    state: AircraftState,
+    loads: ManeuverLoads,
+    dt: float | torch.Tensor,
+    limits: AircraftLimits,
+    gravity: float = GRAVITY,
+) -> AircraftState:
+    """Advance equation 3 by one simulation step ``dt`` (semi-implicit Euler) at the given load factors and bank.
 
     Speed, flight-path angle and heading are updated first and the position is
     then moved with the updated values. This costs the same as explicit Euler
     but keeps a constant-rate turn on a closed circle instead of spiralling out.
     Speed and flight-path angle are clamped to the performance limits. The bank
-    angle is set by the maneuver (the paper's discrete action model commands it).
+    angle is the commanded one (the paper's discrete action model commands it; so does the autopilot,
+    :mod:`agrl.core.autopilot`).
     Heading is left unwrapped: callers wrap it where they compare angles. ``dt`` may be a per-row tensor: a row
     with ``dt = 0`` keeps its state exactly (the simulator freezes finished rows so), except the bank.
     """
-    loads = load_factors_and_bank(state.flight_path_angle, axial_excess, normal_load, turn_direction)
     _, _, _, speed_rate, flight_path_rate, heading_rate = point_mass_derivatives(
         state.speed, state.flight_path_angle, state.heading, loads.cos_bank, loads.sin_bank, loads.axial_load,
         loads.normal_load, gravity,
