@@ -6,7 +6,7 @@
     python -m agrl.report runs docs/results/data/moving --times 60 120 180 240       # one line per run
     python -m agrl.report summary docs/results/data/switch_finetune --by variant    # mean ± sd over seeds per group
     python -m agrl.report evaluations docs/results/data/zero_shot_2026-12-03     # one line per independent evaluation
-    python -m agrl.report bench docs/results/data/bench_2026-12-03/bench.jsonl   # one line per `make bench` JSON line
+    python -m agrl.report bench docs/results/data/bench_2026-12-06/bench.jsonl   # one line per `make bench` JSON line
     python -m agrl.report pages                    # rerun every report block of docs/results/*.md, docs/benchmarks.md
     python -m agrl.report pages --check            # exit 1 naming each block whose text is out of date
 
