@@ -23,9 +23,12 @@ from agrl.core.aircraft import (
     AircraftLimits,
     AircraftState,
     ManeuverControls,
-    integrate_aircraft,
+    ManeuverLoads,
+    integrate_loads,
+    load_factors_and_bank,
     wrap_angle,
 )
+from agrl.core.autopilot import AutopilotParameters, HeldTargets, autopilot_loads
 from agrl.core.compiled import CachedRowwiseCompile, EagerFallback
 from agrl.core.destinations import DestinationState, move_destination
 from agrl.core.termination import Airspace, Outcome, SuccessTolerance, is_outside_airspace, is_success
@@ -83,13 +86,27 @@ def _substep(
     outcome: torch.Tensor,
     params: SimulationParameters,
 ):
+    """One integration step under one maneuver's control law."""
+    loads = load_factors_and_bank(aircraft.flight_path_angle, axial_excess, normal_load, turn_direction)
+    return _advance(aircraft, loads, destination, destination_speed, destination_turn_rate, active, outcome, params)
+
+
+def _advance(
+    aircraft: AircraftState,
+    loads: ManeuverLoads,
+    destination: DestinationState,
+    destination_speed: torch.Tensor,
+    destination_turn_rate: torch.Tensor,
+    active: torch.Tensor,
+    outcome: torch.Tensor,
+    params: SimulationParameters,
+):
+    """One integration step of aircraft and destination at the given loads, then the success and airspace checks."""
     airspace = params.airspace
     # A finished row is frozen by a zero step (x + rate * 0 = x exactly): the next step's trigonometric
     # functions then read the very values this step wrote, which lets the fused kernel compute them once.
     dt = params.integration_step * active.to(aircraft.speed.dtype)
-    moved = integrate_aircraft(
-        aircraft, axial_excess, normal_load, turn_direction, dt, params.limits, params.gravity
-    )
+    moved = integrate_loads(aircraft, loads, dt, params.limits, params.gravity)
     destination = move_destination(
         destination,
         destination_speed,
@@ -98,7 +115,7 @@ def _substep(
         (airspace.x_min, airspace.x_max),
         (airspace.y_min, airspace.y_max),
     )
-    aircraft = moved._replace(bank=torch.where(active, moved.bank, aircraft.bank))  # the maneuver sets the bank
+    aircraft = moved._replace(bank=torch.where(active, moved.bank, aircraft.bank))  # the control law sets the bank
     succeeded = active & is_success(
         aircraft.x, aircraft.y, aircraft.z, aircraft.heading, *destination, params.tolerance
     )
@@ -119,6 +136,21 @@ def _substeps(*args):
     return aircraft, destination, active, outcome
 
 
+def _target_substeps(*args):
+    """``count`` integration steps with the autopilot flying held targets (``args``: aircraft, destination, its
+    speed and turn rate, the target heading, altitude and speed, active, outcome, then the simulation's and the
+    autopilot's parameters and ``count``); fused when compiled."""
+    *state, params, autopilot, count = args
+    aircraft, destination, speed, turn_rate, heading, altitude, target_speed, active, outcome = state
+    targets = HeldTargets(heading, altitude, target_speed)
+    for _ in range(count):
+        loads = autopilot_loads(aircraft, targets, params.limits, autopilot, params.gravity)
+        aircraft, destination, active, outcome = _advance(
+            aircraft, loads, destination, speed, turn_rate, active, outcome, params
+        )
+    return aircraft, destination, active, outcome
+
+
 class DecisionSimulator:
     """Runs decision steps for a batch of aircraft and destinations.
 
@@ -132,10 +164,13 @@ class DecisionSimulator:
 
     def __init__(
         self, params: SimulationParameters, controls: ManeuverControls, compile: bool = False,
-        substeps_per_call: int = 10,
+        substeps_per_call: int = 10, autopilot: AutopilotParameters | None = None,
     ):
         self.params = params
         self.controls = controls
+        self.autopilot = autopilot
+        self._compile = compile
+        self._target_substeps: EagerFallback | None = None
         self.substeps = params.substeps
         if substeps_per_call < 1 or self.substeps % substeps_per_call:
             raise ValueError(
@@ -193,3 +228,45 @@ class DecisionSimulator:
 
     def _run_substeps(self, *args):
         return self._substeps(*args, self.params, self.substeps_per_call)
+
+    def fly_targets(
+        self,
+        aircraft_state: torch.Tensor,
+        destination_state: torch.Tensor,
+        destination_speed: torch.Tensor,
+        destination_turn_rate: torch.Tensor,
+        held_targets: torch.Tensor,
+        active: torch.Tensor | None = None,
+    ) -> DecisionResult:
+        """Advance every row by one decision with the autopilot (:mod:`agrl.core.autopilot`) flying
+        ``held_targets`` (``(..., 3)``: heading rad, altitude m, speed m/s); needs ``autopilot``. Rows with
+        ``active=False`` are left unchanged. Compiled like the maneuvers' step (its own kept compilation, made on
+        the first call)."""
+        if self.autopilot is None:
+            raise ValueError("fly_targets needs a DecisionSimulator built with autopilot=AutopilotParameters(...)")
+        aircraft = AircraftState(*(field.contiguous() for field in aircraft_state.unbind(-1)))
+        destination = DestinationState(*(field.contiguous() for field in destination_state.unbind(-1)))
+        targets = tuple(field.contiguous() for field in held_targets.unbind(-1))
+        shape = aircraft.x.shape
+        if active is None:
+            active = torch.ones(shape, dtype=torch.bool, device=aircraft.x.device)
+        outcome = torch.full(shape, int(Outcome.RUNNING), dtype=torch.int64, device=aircraft.x.device)
+        run = self._targets_step()
+        for _ in range(self.substeps // self.substeps_per_call):
+            aircraft, destination, active, outcome = run(
+                aircraft, destination, destination_speed, destination_turn_rate, *targets, active, outcome,
+                self.params, self.autopilot, self.substeps_per_call,
+            )
+        aircraft = aircraft._replace(heading=wrap_angle(aircraft.heading))
+        destination = destination._replace(heading=wrap_angle(destination.heading))
+        return DecisionResult(aircraft.to_tensor(), destination.to_tensor(), outcome)
+
+    def _targets_step(self) -> EagerFallback:
+        if self._target_substeps is None:
+            compiled = _target_substeps
+            if self._compile:
+                compiled = CachedRowwiseCompile(
+                    _target_substeps, "simulation step (targets)",
+                    key=f"{self.params!r} {self.autopilot!r} x{self.substeps_per_call}", options=_INDUCTOR_OPTIONS)
+            self._target_substeps = EagerFallback(compiled, _target_substeps, "the simulation step (targets)")
+        return self._target_substeps

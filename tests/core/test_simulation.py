@@ -193,3 +193,86 @@ def test_a_simulator_whose_compilation_fails_warns_once_and_runs_eagerly(monkeyp
     assert not simulator.compiled
     for result, expected in zip(fallen_back, eager, strict=True):
         torch.testing.assert_close(result, expected)
+
+
+# ---------------------------------------------------------------------- held targets (agrl.core.autopilot)
+@pytest.fixture(scope="module")
+def autopilot(paper_parameters):
+    from agrl.core.autopilot import AutopilotParameters
+
+    loads = paper_parameters.maneuvers
+    return AutopilotParameters(turn_load_factor=loads.turn, pull_up_load_factor=loads.pull_up,
+                               push_over_load_factor=loads.push_over, acceleration_load_factor=loads.acceleration,
+                               deceleration_load_factor=loads.deceleration, heading_time_constant=2.0,
+                               altitude_time_constant=4.0, flight_path_time_constant=1.0, speed_time_constant=5.0,
+                               capture_fraction=0.5)
+
+
+def _held_targets(count: int, generator: torch.Generator) -> torch.Tensor:
+    u = lambda: torch.rand(count, generator=generator)  # noqa: E731
+    return torch.stack(((u() * 2 - 1) * math.pi, 500 + u() * 4_000, 100 + u() * 150), dim=-1)
+
+
+def test_a_decision_with_held_targets_is_150_autopilot_steps(simulation, controls, autopilot):
+    """One decision of the simulator with held targets equals 150 steps of agrl.core.autopilot.fly_targets for
+    rows that neither succeed nor leave the airspace, and wraps the heading."""
+    from agrl.core.aircraft import AircraftState, wrap_angle
+    from agrl.core.autopilot import HeldTargets, fly_targets
+
+    count = 32
+    aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=5, limits=simulation.limits, near=0)
+    targets = _held_targets(count, generator)
+    simulator = DecisionSimulator(simulation, controls, compile=False, autopilot=autopilot)
+    result = simulator.fly_targets(aircraft, destination, speed, turn_rate, targets)
+    state = AircraftState.from_tensor(aircraft)
+    for _ in range(simulation.substeps):
+        state = fly_targets(state, HeldTargets(*targets.unbind(-1)), simulation.integration_step, simulation.limits,
+                            autopilot)
+    expected = state._replace(heading=wrap_angle(state.heading)).to_tensor()
+    running = result.outcome == Outcome.RUNNING
+    assert int(running.sum()) >= count // 2
+    torch.testing.assert_close(result.aircraft_state[running], expected[running], rtol=0, atol=0)
+
+
+def test_held_targets_rows_finish_and_freeze(simulation, controls, autopilot):
+    """A row on the destination's track succeeds within the decision and stops there; an inactive row stays."""
+    aircraft = torch.tensor([[-1_500.0, 0.0, 0.0, 200.0, 0.0, 0.0, 0.0],
+                             [-5_000.0, 0.0, 2_000.0, 200.0, 0.0, 0.0, 0.0]])
+    destination = torch.zeros(2, 4)
+    targets = torch.tensor([[0.0, 0.0, 200.0], [0.0, 2_000.0, 200.0]])
+    simulator = DecisionSimulator(simulation, controls, compile=False, autopilot=autopilot)
+    result = simulator.fly_targets(aircraft, destination, torch.zeros(2), torch.zeros(2), targets,
+                                   active=torch.tensor([True, False]))
+    assert result.outcome.tolist() == [int(Outcome.SUCCESS), int(Outcome.RUNNING)]
+    # Stopped where it entered the 1 km tolerance (4 m a step at 200 m/s), 2.5 s into the decision.
+    assert -1_000.0 - 4.0 <= float(result.aircraft_state[0, 0]) <= -1_000.0
+    torch.testing.assert_close(result.aircraft_state[1], aircraft[1])
+
+
+def test_held_targets_need_an_autopilot(simulation, controls):
+    simulator = DecisionSimulator(simulation, controls, compile=False)
+    with pytest.raises(ValueError, match="fly_targets needs a DecisionSimulator built with autopilot="):
+        simulator.fly_targets(torch.zeros(1, 7), torch.zeros(1, 4), torch.zeros(1), torch.zeros(1), torch.zeros(1, 3))
+
+
+@pytest.mark.slow
+def test_held_targets_compiled_match_eager(simulation, controls, autopilot):
+    """The fused target step (ten integration steps a call, its own compilation) against the eager one, over three
+    decisions, with the maneuvers' compiled test's tolerances."""
+    count = 16
+    aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=6, limits=simulation.limits)
+    targets = _held_targets(count, generator)
+    eager = DecisionSimulator(simulation, controls, compile=False, autopilot=autopilot)
+    fused = DecisionSimulator(simulation, controls, compile=True, autopilot=autopilot)
+    states = {"eager": (aircraft, destination), "fused": (aircraft, destination)}
+    for _ in range(3):
+        results = {}
+        for name, simulator in (("eager", eager), ("fused", fused)):
+            results[name] = simulator.fly_targets(*states[name], speed, turn_rate, targets)
+            states[name] = (results[name].aircraft_state, results[name].destination_state)
+        assert fused._targets_step().compiled
+        assert torch.equal(results["fused"].outcome, results["eager"].outcome)
+        torch.testing.assert_close(results["fused"].aircraft_state[:, :3], results["eager"].aircraft_state[:, :3],
+                                   rtol=0, atol=1e-2)
+        torch.testing.assert_close(results["fused"].aircraft_state[:, 3:], results["eager"].aircraft_state[:, 3:],
+                                   rtol=0, atol=1e-4)
