@@ -201,3 +201,25 @@ def apply_target_action(
     changed = ((wrap_angle(heading - targets.heading) != 0) | (altitude != targets.altitude)
                | (speed != targets.speed))
     return HeldTargets(heading, altitude, speed), changed
+
+
+def compass_heading_deg(heading: float) -> float:
+    """Equation 3's heading (rad, 0 along +x, growing towards +y) as a controller's heading in degrees
+    (0 north, clockwise), with +x east and +y north (this project's choice: the paper names no directions)."""
+    return (90.0 - math.degrees(heading)) % 360.0
+
+
+def target_instruction_text(kind: TargetKind, value: float, aircraft: AircraftState) -> str:
+    """What a controller says for a target-holding action given to ``aircraft`` (one row): "turn left heading
+    270", "climb to 3 000 m", "reduce speed to 100 m/s", "maintain" (hold everything)."""
+    if kind == TargetKind.HEADING:
+        # A positive change of psi turns towards +y: left (equation 3's sign; the autopilot takes the shorter way).
+        side = "left" if float(wrap_angle(torch.tensor(value - float(aircraft.heading)))) > 0 else "right"
+        return f"turn {side} heading {round(compass_heading_deg(value)) % 360:03d}"
+    if kind == TargetKind.ALTITUDE:
+        verb = "climb" if value > float(aircraft.z) else "descend"
+        return f"{verb} to {value:,.0f} m".replace(",", " ")
+    if kind == TargetKind.SPEED:
+        verb = "increase" if value > float(aircraft.speed) else "reduce"
+        return f"{verb} speed to {value:.0f} m/s"
+    return "maintain"

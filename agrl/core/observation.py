@@ -202,6 +202,28 @@ def in_destination_frame(
     return moved, torch.zeros_like(destination_state)
 
 
+#: What :func:`held_target_features` adds to the policy input for an agent that flies held targets.
+HELD_TARGET_FEATURES = ("target_heading_sin", "target_heading_cos", "target_altitude_above", "target_speed_above")
+
+
+def held_target_features(
+    aircraft_state: torch.Tensor, held_targets: torch.Tensor, airspace: Airspace, limits: AircraftLimits
+) -> torch.Tensor:
+    """The held targets (``(..., 3)``: heading rad, altitude m, speed m/s; :mod:`agrl.core.autopilot`) relative to
+    the aircraft, ``(..., 4)``: the sine and cosine of the heading still to turn, the altitude still to climb over
+    the airspace's height, the speed still to gain over the speed range. All 0 (cosine 1) when every target is
+    reached."""
+    _, _, z, speed, _, heading, _ = aircraft_state.unbind(-1)
+    target_heading, target_altitude, target_speed = held_targets.unbind(-1)
+    turn = wrap_angle(target_heading - heading)
+    return torch.stack((
+        torch.sin(turn),
+        torch.cos(turn),
+        (target_altitude - z) / (airspace.z_max - airspace.z_min),
+        (target_speed - speed) / (limits.max_speed - limits.min_speed),
+    ), dim=-1)
+
+
 #: ``agent.observation`` -> (the function computing its policy input from equation 4's fields, its feature names).
 OBSERVATIONS = {
     "relative": (policy_observation, OBSERVATION_FEATURES),

@@ -244,3 +244,22 @@ def test_rows_of_a_batch_are_flown_independently(setup):
         for field, value in zip(batch, state, strict=True):
             torch.testing.assert_close(field[row:row + 1], value)
     assert float(batch.heading[0]) > 0.8 and float(batch.z[1]) > 1_100.0 and float(batch.speed[2]) < 175.0
+
+
+def test_instruction_texts_read_as_a_controller_says_them():
+    from agrl.core.autopilot import compass_heading_deg, target_instruction_text
+
+    assert compass_heading_deg(0.0) == pytest.approx(90.0)  # +x is east
+    assert compass_heading_deg(math.pi / 2) == pytest.approx(0.0)  # +y is north
+    assert compass_heading_deg(math.pi) == pytest.approx(270.0)
+    flying_east = _level(z=2_000.0, heading=0.0)
+    one_row = AircraftState(*(float(field) for field in flying_east))
+    # A reversal turns the way the autopilot does: wrap_angle(pi) = -pi, towards smaller psi, to the right.
+    assert target_instruction_text(TargetKind.HEADING, math.pi, one_row) == "turn right heading 270"
+    assert target_instruction_text(TargetKind.HEADING, math.pi / 2, one_row) == "turn left heading 000"
+    assert target_instruction_text(TargetKind.HEADING, -math.pi / 6, one_row) == "turn right heading 120"
+    assert target_instruction_text(TargetKind.ALTITUDE, 3_000.0, one_row) == "climb to 3 000 m"
+    assert target_instruction_text(TargetKind.ALTITUDE, 500.0, one_row) == "descend to 500 m"
+    assert target_instruction_text(TargetKind.SPEED, 100.0, one_row) == "reduce speed to 100 m/s"
+    assert target_instruction_text(TargetKind.SPEED, 250.0, one_row) == "increase speed to 250 m/s"
+    assert target_instruction_text(TargetKind.HOLD, 0.0, one_row) == "maintain"

@@ -202,3 +202,17 @@ def test_the_destination_frame_is_the_papers_shift_for_a_destination_heading_0()
 def test_an_unknown_observation_kind_is_one_line():
     with pytest.raises(ValueError, match=r"^observation='polar' is not allowed: one of relative, absolute$"):
         observation_size("polar")
+
+
+def test_held_target_features_are_what_is_left_to_fly(paper_parameters):
+    from agrl.core.observation import HELD_TARGET_FEATURES, held_target_features
+
+    simulation = paper_parameters.simulation
+    aircraft = torch.tensor([[0.0, 0.0, 2_000.0, 200.0, 0.0, 0.5, 0.0]] * 2)
+    targets = torch.tensor([[0.5, 2_000.0, 200.0], [0.5 + math.pi / 2, 3_000.0, 250.0]])
+    features = held_target_features(aircraft, targets, simulation.airspace, simulation.limits)
+    assert features.shape == (2, len(HELD_TARGET_FEATURES))
+    torch.testing.assert_close(features[0], torch.tensor([0.0, 1.0, 0.0, 0.0]))
+    height = simulation.airspace.z_max - simulation.airspace.z_min
+    speeds = simulation.limits.max_speed - simulation.limits.min_speed
+    torch.testing.assert_close(features[1], torch.tensor([1.0, 0.0, 1_000.0 / height, 50.0 / speeds]))
