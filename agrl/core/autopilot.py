@@ -114,7 +114,7 @@ def autopilot_loads(
     heading_rate = wrap_angle(targets.heading - aircraft.heading) / autopilot.heading_time_constant
     horizontal_load = -speed * cos_theta * heading_rate / gravity
     room = torch.sqrt((autopilot.turn_load_factor ** 2 - vertical_load * vertical_load).clamp_min(0.0))
-    horizontal_load = torch.minimum(torch.maximum(horizontal_load, -room), room)
+    horizontal_load = torch.clamp(horizontal_load, -room, room)
     normal_load = torch.sqrt(vertical_load * vertical_load + horizontal_load * horizontal_load)
     # n = 0 (a 0 g push-over with wings level): any bank; the level one.
     safe = normal_load > 0
@@ -130,7 +130,7 @@ def autopilot_loads(
     )
 
 
-def fly_targets(
+def autopilot_step(
     aircraft: AircraftState,
     targets: HeldTargets,
     dt: float | torch.Tensor,

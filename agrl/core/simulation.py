@@ -170,7 +170,7 @@ class DecisionSimulator:
         self.controls = controls
         self.autopilot = autopilot
         self._compile = compile
-        self._target_substeps: EagerFallback | None = None
+        self._targets_run: EagerFallback | None = None
         self.substeps = params.substeps
         if substeps_per_call < 1 or self.substeps % substeps_per_call:
             raise ValueError(
@@ -201,33 +201,10 @@ class DecisionSimulator:
 
         Rows with ``active=False`` are left unchanged (used to freeze finished episodes).
         """
-        # Contiguous fields: the fused step then sees the same strides at every substep (no recompilation).
-        aircraft = AircraftState(*(field.contiguous() for field in aircraft_state.unbind(-1)))
-        destination = DestinationState(*(field.contiguous() for field in destination_state.unbind(-1)))
-        axial_excess = self.controls.axial_excess[action]
-        normal_load = self.controls.normal_load[action]
-        turn_direction = self.controls.turn_direction[action]
-        if active is None:
-            active = torch.ones(action.shape, dtype=torch.bool, device=action.device)
-        outcome = torch.full(action.shape, int(Outcome.RUNNING), dtype=torch.int64, device=action.device)
-        for _ in range(self.substeps // self.substeps_per_call):
-            aircraft, destination, active, outcome = self._run_substeps(
-                aircraft,
-                destination,
-                destination_speed,
-                destination_turn_rate,
-                axial_excess,
-                normal_load,
-                turn_direction,
-                active,
-                outcome,
-            )
-        aircraft = aircraft._replace(heading=wrap_angle(aircraft.heading))
-        destination = destination._replace(heading=wrap_angle(destination.heading))
-        return DecisionResult(aircraft.to_tensor(), destination.to_tensor(), outcome)
-
-    def _run_substeps(self, *args):
-        return self._substeps(*args, self.params, self.substeps_per_call)
+        controls = (self.controls.axial_excess[action], self.controls.normal_load[action],
+                    self.controls.turn_direction[action])
+        return self._decide(self._substeps, aircraft_state, destination_state, destination_speed,
+                            destination_turn_rate, controls, active, (self.params, self.substeps_per_call))
 
     def fly_targets(
         self,
@@ -244,29 +221,37 @@ class DecisionSimulator:
         the first call)."""
         if self.autopilot is None:
             raise ValueError("fly_targets needs a DecisionSimulator built with autopilot=AutopilotParameters(...)")
+        targets = tuple(field.contiguous() for field in held_targets.unbind(-1))
+        return self._decide(self._targets_step(), aircraft_state, destination_state, destination_speed,
+                            destination_turn_rate, targets, active,
+                            (self.params, self.autopilot, self.substeps_per_call))
+
+    def _decide(self, run, aircraft_state, destination_state, destination_speed, destination_turn_rate, controls,
+                active, constants) -> DecisionResult:
+        """One decision: ``run`` (a substeps function) ``substeps // substeps_per_call`` times with the per-row
+        ``controls`` and the trailing ``constants``, then the headings wrapped."""
+        # Contiguous fields: the fused step then sees the same strides at every substep (no recompilation).
         aircraft = AircraftState(*(field.contiguous() for field in aircraft_state.unbind(-1)))
         destination = DestinationState(*(field.contiguous() for field in destination_state.unbind(-1)))
-        targets = tuple(field.contiguous() for field in held_targets.unbind(-1))
-        shape = aircraft.x.shape
+        shape, device = aircraft.x.shape, aircraft.x.device
         if active is None:
-            active = torch.ones(shape, dtype=torch.bool, device=aircraft.x.device)
-        outcome = torch.full(shape, int(Outcome.RUNNING), dtype=torch.int64, device=aircraft.x.device)
-        run = self._targets_step()
+            active = torch.ones(shape, dtype=torch.bool, device=device)
+        outcome = torch.full(shape, int(Outcome.RUNNING), dtype=torch.int64, device=device)
         for _ in range(self.substeps // self.substeps_per_call):
             aircraft, destination, active, outcome = run(
-                aircraft, destination, destination_speed, destination_turn_rate, *targets, active, outcome,
-                self.params, self.autopilot, self.substeps_per_call,
+                aircraft, destination, destination_speed, destination_turn_rate, *controls, active, outcome,
+                *constants,
             )
         aircraft = aircraft._replace(heading=wrap_angle(aircraft.heading))
         destination = destination._replace(heading=wrap_angle(destination.heading))
         return DecisionResult(aircraft.to_tensor(), destination.to_tensor(), outcome)
 
     def _targets_step(self) -> EagerFallback:
-        if self._target_substeps is None:
+        if self._targets_run is None:
             compiled = _target_substeps
             if self._compile:
                 compiled = CachedRowwiseCompile(
                     _target_substeps, "simulation step (targets)",
                     key=f"{self.params!r} {self.autopilot!r} x{self.substeps_per_call}", options=_INDUCTOR_OPTIONS)
-            self._target_substeps = EagerFallback(compiled, _target_substeps, "the simulation step (targets)")
-        return self._target_substeps
+            self._targets_run = EagerFallback(compiled, _target_substeps, "the simulation step (targets)")
+        return self._targets_run

@@ -16,7 +16,7 @@ from agrl.core.autopilot import (
     TargetKind,
     apply_target_action,
     autopilot_loads,
-    fly_targets,
+    autopilot_step,
     target_action_table,
 )
 
@@ -49,7 +49,7 @@ def _fly(aircraft, targets, seconds, limits, autopilot):
     states, loads = [], []
     for _ in range(round(seconds / DT)):
         loads.append(autopilot_loads(aircraft, targets, limits, autopilot))
-        aircraft = fly_targets(aircraft, targets, DT, limits, autopilot)
+        aircraft = autopilot_step(aircraft, targets, DT, limits, autopilot)
         states.append(aircraft)
     return states, loads
 
@@ -237,8 +237,8 @@ def test_rows_of_a_batch_are_flown_independently(setup):
                           torch.tensor([SPEED, SPEED, 120.0]))
     batch, alone = start, [AircraftState(*(field[row:row + 1] for field in start)) for row in rows]
     for _ in range(500):
-        batch = fly_targets(batch, targets, DT, limits, autopilot)
-        alone = [fly_targets(state, HeldTargets(*(field[row:row + 1] for field in targets)), DT, limits, autopilot)
+        batch = autopilot_step(batch, targets, DT, limits, autopilot)
+        alone = [autopilot_step(state, HeldTargets(*(field[row:row + 1] for field in targets)), DT, limits, autopilot)
                  for row, state in zip(rows, alone, strict=True)]
     for row, state in zip(rows, alone, strict=True):
         for field, value in zip(batch, state, strict=True):

@@ -214,10 +214,10 @@ def _held_targets(count: int, generator: torch.Generator) -> torch.Tensor:
 
 
 def test_a_decision_with_held_targets_is_150_autopilot_steps(simulation, controls, autopilot):
-    """One decision of the simulator with held targets equals 150 steps of agrl.core.autopilot.fly_targets for
+    """One decision of the simulator with held targets equals 150 steps of agrl.core.autopilot.autopilot_step for
     rows that neither succeed nor leave the airspace, and wraps the heading."""
     from agrl.core.aircraft import AircraftState, wrap_angle
-    from agrl.core.autopilot import HeldTargets, fly_targets
+    from agrl.core.autopilot import HeldTargets, autopilot_step
 
     count = 32
     aircraft, destination, speed, turn_rate, generator = random_batch(count, seed=5, limits=simulation.limits, near=0)
@@ -226,7 +226,7 @@ def test_a_decision_with_held_targets_is_150_autopilot_steps(simulation, control
     result = simulator.fly_targets(aircraft, destination, speed, turn_rate, targets)
     state = AircraftState.from_tensor(aircraft)
     for _ in range(simulation.substeps):
-        state = fly_targets(state, HeldTargets(*targets.unbind(-1)), simulation.integration_step, simulation.limits,
+        state = autopilot_step(state, HeldTargets(*targets.unbind(-1)), simulation.integration_step, simulation.limits,
                             autopilot)
     expected = state._replace(heading=wrap_angle(state.heading)).to_tensor()
     running = result.outcome == Outcome.RUNNING
