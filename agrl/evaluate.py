@@ -32,12 +32,11 @@ from agrl.rl.checkpoint import CheckpointError, load_checkpoint, load_module_sta
 
 def load_agent(reference: str, device: torch.device | str = "cpu"):
     """(actor, saved config dict, path) of a checkpoint file, run directory or shipped agent's name."""
-    from agrl.rl.models import make_actor
+    from agrl.rl.models import make_agent
 
     path = resolve_checkpoint_path(reference)
     payload = load_checkpoint(path, required=("actor", "config"))
-    agent = saved_agent_config(payload["config"])
-    actor = make_actor(agent.actor_hidden, agent.activation, device, agent.observation)
+    actor, _ = make_agent(saved_agent_config(payload["config"]), saved_guidance_parameters(payload["config"]), device)
     load_module_state(actor, payload["actor"], path, "actor")
     return actor.eval(), payload["config"], path
 

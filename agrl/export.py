@@ -13,8 +13,10 @@ an existing DESTINATION is replaced only with ``--force``.
 - ``torch_export``: the same graph as a ``torch.export`` archive (``.pt2``).
 
 Both graphs take ``aircraft_state`` ``(N, 7)`` float32, ``destination_state`` ``(N, 4)`` float32 and
-``last_action`` ``(N,)`` int64 (any N) and return ``maneuver`` ``(N,)`` int64; the airspace and
-limits they were trained with are stored beside them as JSON metadata. ``agrl.guide.Guide.load``
+``last_action`` ``(N,)`` int64 (any N) and return ``maneuver`` ``(N,)`` int64; an agent holding targets
+(``actions=targets``) takes ``held_targets`` ``(N, 3)`` float32 instead of ``last_action`` and returns ``action``
+``(N,)`` int64. The airspace, limits and action set they were trained with are stored beside them as JSON
+metadata. ``agrl.guide.Guide.load``
 reads all three formats.
 """
 
@@ -44,7 +46,8 @@ def export_torch(source: str | Path, destination: str | Path) -> Path:
     from agrl.guide import example_inputs, export_metadata, load_policy
 
     policy, _, checkpoint = load_policy(source)
-    program = torch.export.export(policy, example_inputs(), dynamic_shapes=_dynamic_batch())
+    program = torch.export.export(policy, example_inputs(holds_targets=policy.actions.holds_targets),
+                                  dynamic_shapes=_dynamic_batch())
     destination = Path(destination)
     destination.parent.mkdir(parents=True, exist_ok=True)
     torch.export.save(program, str(destination), extra_files=export_metadata(policy, checkpoint))
@@ -60,16 +63,18 @@ def export_onnx(source: str | Path, destination: str | Path) -> Path:
         import onnx
     except ImportError:
         raise CheckpointError("format=onnx needs the onnx package (pip install 'agrl[export]')") from None
-    from agrl.guide import INPUT_NAMES, OUTPUT_NAME, example_inputs, export_metadata, load_policy
+    from agrl.guide import example_inputs, export_metadata, io_names, load_policy
 
     policy, _, checkpoint = load_policy(source)
+    input_names, output_name = io_names(policy)
     destination = Path(destination)
     destination.parent.mkdir(parents=True, exist_ok=True)
     logging.getLogger("torch.onnx").setLevel(logging.ERROR)  # "torchvision is not installed" notes
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the exporter's own deprecation notes about its internals
-        program = torch.onnx.export(policy, example_inputs(), dynamo=True, dynamic_shapes=_dynamic_batch(),
-                                    input_names=list(INPUT_NAMES), output_names=[OUTPUT_NAME], verbose=False)
+        program = torch.onnx.export(policy, example_inputs(holds_targets=policy.actions.holds_targets), dynamo=True,
+                                    dynamic_shapes=_dynamic_batch(), input_names=list(input_names),
+                                    output_names=[output_name], verbose=False)
     model = program.model_proto
     for key, value in export_metadata(policy, checkpoint).items():
         entry = model.metadata_props.add()

@@ -41,7 +41,8 @@ from torch import nn
 
 from agrl.config import one_line
 from agrl.core.aircraft import MANEUVER_NAMES, AircraftLimits
-from agrl.core.observation import policy_observation
+from agrl.core.observation import policy_observation, target_observation_function
+from agrl.core.parameters import ActionKind, ActionSet
 from agrl.core.termination import Airspace
 from agrl.plan import Plan, plan, task_parameters
 from agrl.rows import observation_row
@@ -52,6 +53,12 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 METADATA_KEY = "agrl_guide"
 INPUT_NAMES = ("aircraft_state", "destination_state", "last_action")
 OUTPUT_NAME = "maneuver"
+#: An agent holding targets (``actions=targets``) reads the held targets (heading rad, altitude m, speed m/s) where a
+#: maneuver agent reads its last maneuver, and answers an action of its table.
+TARGET_INPUT_NAMES = ("aircraft_state", "destination_state", "held_targets")
+TARGET_OUTPUT_NAME = "action"
+#: What a guide exported before action sets existed flies: the paper's maneuvers.
+MANEUVERS = ActionSet(ActionKind.MANEUVERS)
 _ACTIVATIONS = {"tanh": np.tanh, "relu": lambda value: np.maximum(value, 0.0),
                 "elu": lambda value: np.where(value > 0, value, np.expm1(np.minimum(value, 0.0)))}
 
@@ -70,17 +77,23 @@ class GuideError(ValueError):
 
 
 class GuidePolicy(nn.Module):
-    """Raw state -> maneuver index: ``policy_observation``, the actor's network, argmax (deterministic action)."""
+    """Raw state -> action index: the relative observation, the actor's network, argmax (deterministic action).
 
-    def __init__(self, network: nn.Module, airspace: Airspace, limits: AircraftLimits):
+    A maneuver agent's third input is the maneuver flown (``last_action``, int64); an agent holding targets
+    (``actions.holds_targets``) reads the held targets ``(N, 3)`` float32 there instead."""
+
+    def __init__(self, network: nn.Module, airspace: Airspace, limits: AircraftLimits,
+                 actions: ActionSet = MANEUVERS):
         super().__init__()
         self.network = network
         self.airspace = airspace
         self.limits = limits
+        self.actions = actions
+        self._observe = target_observation_function("relative") if actions.holds_targets else policy_observation
 
     def forward(self, aircraft_state: torch.Tensor, destination_state: torch.Tensor,
                 last_action: torch.Tensor) -> torch.Tensor:
-        observation = policy_observation(aircraft_state, destination_state, last_action, self.airspace, self.limits)
+        observation = self._observe(aircraft_state, destination_state, last_action, self.airspace, self.limits)
         return self.network(observation).argmax(-1)
 
 
@@ -119,18 +132,20 @@ class BatchedLayers:
         return value
 
 
-def _metadata(airspace: Airspace, limits: AircraftLimits, source: str) -> str:
+def _metadata(airspace: Airspace, limits: AircraftLimits, source: str, actions: ActionSet = MANEUVERS) -> str:
     return json.dumps({"airspace": dataclasses.asdict(airspace), "limits": dataclasses.asdict(limits),
-                       "source": source})
+                       "source": source, "actions": dataclasses.asdict(actions)})
 
 
-def _from_metadata(text: str, path: Path) -> tuple[Airspace, AircraftLimits, str]:
+def _from_metadata(text: str, path: Path) -> tuple[Airspace, AircraftLimits, str, ActionSet]:
     try:
         values = json.loads(text)
         limits = dict(values["limits"])
         if "max_flight_path_angle" in limits:  # an export written when the limit was stored in radians
             limits["max_flight_path_angle_deg"] = math.degrees(limits.pop("max_flight_path_angle"))
-        return Airspace(**values["airspace"]), AircraftLimits(**limits), values.get("source", str(path))
+        actions = ActionSet(**values["actions"]) if "actions" in values else MANEUVERS
+        return (Airspace(**values["airspace"]), AircraftLimits(**limits), values.get("source", str(path)),
+                actions)
     except (ValueError, KeyError, TypeError) as error:
         raise GuideError(f"{path}: not an agrl guide export (bad {METADATA_KEY} metadata: {error})") from None
 
@@ -148,7 +163,7 @@ def load_policy(reference: str | Path = "baseline") -> tuple[GuidePolicy, str, s
                          "relative only (evaluate this agent with python -m agrl.evaluate)")
     params = saved_guidance_parameters(saved)
     networks = [module for module in actor.modules() if isinstance(module, nn.Sequential)]
-    policy = GuidePolicy(networks[0], params.simulation.airspace, params.simulation.limits).eval()
+    policy = GuidePolicy(networks[0], params.simulation.airspace, params.simulation.limits, params.actions).eval()
     return policy, saved["agent"]["activation"], str(path)
 
 
@@ -191,6 +206,7 @@ def _numbers(values, width: int) -> list[float] | None:
 
 
 def _actions(values, count: int) -> np.ndarray:
+    """A maneuver agent's third input: the maneuvers flown, ``(count,)`` int64."""
     array = _array(values, "last_action")
     if (array.shape != (count,) or not np.issubdtype(array.dtype, np.integer)
             or not bool(((array >= 0) & (array < NUM_MANEUVERS)).all())):
@@ -200,20 +216,42 @@ def _actions(values, count: int) -> np.ndarray:
 
 
 class Guide:
-    """A trained agent answering "which maneuver now?"; build it with :meth:`Guide.load`."""
+    """A trained agent answering "which maneuver now?" (or, for an agent holding targets, "which clearance
+    now?"); build it with :meth:`Guide.load`.
+
+    ``actions`` is the agent's action set (:class:`agrl.core.parameters.ActionSet`). For an agent holding targets
+    (``actions.holds_targets``), the third argument of :meth:`instruct` and :meth:`instruct_batch` is the targets
+    held now (heading rad, altitude m, speed m/s; at the start what the aircraft flies) instead of the maneuver
+    flown, and the answer is an index of :attr:`target_table`."""
 
     def __init__(self, airspace: Airspace, limits: AircraftLimits, source: str, kind: str,
-                 policy: GuidePolicy | None = None, activation: str = "tanh", runner=None):
+                 policy: GuidePolicy | None = None, activation: str = "tanh", runner=None,
+                 actions: ActionSet = MANEUVERS):
         self.airspace, self.limits, self.source, self.kind = airspace, limits, source, kind
+        self.actions = policy.actions if policy is not None else actions
         self.policy = policy  # the torch GuidePolicy (checkpoint and torch_export kinds)
         self._runner = runner  # an onnxruntime session or a torch.export module
         self._layers: list[tuple[np.ndarray, np.ndarray]] = []
         self._batched: BatchedLayers | None = None
         if policy is not None and kind == "checkpoint":
             self._batched = BatchedLayers(policy.network, activation)
-            self._layers = [(weight.t().numpy().copy(), bias.numpy().copy())
-                            for weight, bias in self._batched.layers]
+            if not self.holds_targets:  # the one-row numpy path computes the maneuver agent's observation
+                self._layers = [(weight.t().numpy().copy(), bias.numpy().copy())
+                                for weight, bias in self._batched.layers]
             self._activation = _ACTIVATIONS[activation]
+
+    @property
+    def holds_targets(self) -> bool:
+        return self.actions.holds_targets
+
+    @property
+    def target_table(self):
+        """The target-holding actions (:class:`agrl.core.autopilot.TargetActionTable`), None for a maneuver agent."""
+        return self.actions.target_table(self.airspace, self.limits)
+
+    @property
+    def num_actions(self) -> int:
+        return self.actions.count(self.airspace, self.limits)
 
     # ------------------------------------------------------------------ loading
     @classmethod
@@ -245,8 +283,8 @@ class Guide:
         metadata = session.get_modelmeta().custom_metadata_map
         if METADATA_KEY not in metadata:
             raise GuideError(f"{path}: not an agrl guide export (no {METADATA_KEY} metadata)")
-        airspace, limits, source = _from_metadata(metadata[METADATA_KEY], path)
-        return cls(airspace, limits, source, "onnx", runner=session)
+        airspace, limits, source, actions = _from_metadata(metadata[METADATA_KEY], path)
+        return cls(airspace, limits, source, "onnx", runner=session, actions=actions)
 
     @classmethod
     def _load_torch_export(cls, path: Path) -> Guide:
@@ -259,16 +297,24 @@ class Guide:
             raise GuideError(f"{path}: not a readable torch.export archive: {str(error).splitlines()[0]}") from None
         if not extra[METADATA_KEY]:
             raise GuideError(f"{path}: not an agrl guide export (no {METADATA_KEY} metadata)")
-        airspace, limits, source = _from_metadata(extra[METADATA_KEY], path)
-        return cls(airspace, limits, source, "torch_export", runner=program.module())
+        airspace, limits, source, actions = _from_metadata(extra[METADATA_KEY], path)
+        return cls(airspace, limits, source, "torch_export", runner=program.module(), actions=actions)
 
     # ------------------------------------------------------------------ questions
     def instruct(self, aircraft_state, destination_state, last_action) -> int:
-        """The maneuver index for one aircraft (x, y, z, v, theta, psi, phi) and destination (x, y, z, psi)."""
+        """The maneuver index for one aircraft (x, y, z, v, theta, psi, phi) and destination (x, y, z, psi);
+        for an agent holding targets, the action index, ``last_action`` being the held targets (3 numbers)."""
         aircraft, destination = _numbers(aircraft_state, 7), _numbers(destination_state, 4)
         if aircraft is None or destination is None:
             raise GuideError(f"aircraft_state={one_line(aircraft_state)}, destination_state="
                              f"{one_line(destination_state)} are not allowed: 7 and 4 finite numbers (float32)")
+        if self.holds_targets:
+            held = _numbers(last_action, 3)
+            if held is None:
+                raise GuideError(f"held_targets={one_line(last_action)} is not allowed: 3 finite numbers (heading "
+                                 "rad, altitude m, speed m/s)")
+            return int(self._run(np.array([aircraft], np.float32), np.array([destination], np.float32),
+                                 np.array([held], np.float32))[0])
         if isinstance(last_action, bool) or not isinstance(last_action, (int, np.integer)) or not (
                 0 <= last_action < NUM_MANEUVERS):
             raise GuideError(f"last_action={one_line(last_action)} is not allowed: an integer in "
@@ -290,37 +336,56 @@ class Guide:
         if destination.shape[0] != aircraft.shape[0]:
             raise GuideError(f"destination_state of shape {destination.shape} is not allowed: one row per aircraft "
                              f"({aircraft.shape[0]})")
+        if self.holds_targets:
+            held = _rows(last_action, 3, "held_targets")
+            if held.shape[0] != aircraft.shape[0]:
+                raise GuideError(f"held_targets of shape {held.shape} is not allowed: one row per aircraft "
+                                 f"({aircraft.shape[0]})")
+            return self._run(aircraft, destination, held)
         return self._run(aircraft, destination, _actions(last_action, aircraft.shape[0]))
 
     def _run(self, aircraft: np.ndarray, destination: np.ndarray, last_action: np.ndarray) -> np.ndarray:
         if self.kind == "onnx":
-            inputs = dict(zip(INPUT_NAMES, (aircraft, destination, last_action), strict=True))
-            return self._runner.run([OUTPUT_NAME], inputs)[0]
+            names, output = ((TARGET_INPUT_NAMES, TARGET_OUTPUT_NAME) if self.holds_targets
+                             else (INPUT_NAMES, OUTPUT_NAME))
+            inputs = dict(zip(names, (aircraft, destination, last_action), strict=True))
+            return self._runner.run([output], inputs)[0]
         inputs = torch.from_numpy(aircraft), torch.from_numpy(destination), torch.from_numpy(last_action)
         with torch.inference_mode():  # no autograd bookkeeping at all (no_grad still counts tensor versions)
             if self._batched is None:
                 return self._runner(*inputs).numpy()
-            observation = policy_observation(*inputs, self.airspace, self.limits)
+            observation = self.policy._observe(*inputs, self.airspace, self.limits)
             return self._batched(observation).argmax(-1).numpy()
 
     def plan(self, aircraft_state, destination_state=None, task: Sequence[str] = (), last_action: int = 0) -> Plan:
         """The instructions this agent gives from a start, in order with their times, with the trajectory and the
         outcome (:func:`agrl.plan.plan`): ``aircraft_state`` (x, y, z, v, theta, psi, phi), ``destination_state``
         (x, y, z, psi; default the task's start), ``task`` overrides as ``python -m agrl.evaluate`` takes them
-        (``["task=uniform", "speed=50"]``; default the agent's own task)."""
+        (``["task=uniform", "speed=50"]``; default the agent's own task); ``last_action``: the maneuver flown at the
+        start (a maneuver agent's)."""
         return plan(self, task_parameters(self, task), aircraft_state, destination_state, last_action)
 
     def __repr__(self) -> str:
         return f"Guide(kind={self.kind!r}, source={self.source!r})"
 
 
-def example_inputs(count: int = 2) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def example_inputs(count: int = 2, holds_targets: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Raw-state inputs of the right shapes and dtypes (for tracing an export)."""
     aircraft = torch.zeros(count, 7)
     aircraft[:, 3] = 200.0
+    if holds_targets:
+        return aircraft, torch.zeros(count, 4), aircraft[:, [5, 2, 3]].clone()
     return aircraft, torch.zeros(count, 4), torch.zeros(count, dtype=torch.int64)
 
 
+def io_names(policy: GuidePolicy) -> tuple[tuple[str, ...], str]:
+    """An export's input names and output name for ``policy``'s action set."""
+    if policy.actions.holds_targets:
+        return TARGET_INPUT_NAMES, TARGET_OUTPUT_NAME
+    return INPUT_NAMES, OUTPUT_NAME
+
+
 def export_metadata(policy: GuidePolicy, source: str) -> dict[str, Any]:
-    """``{METADATA_KEY: json}``: what :meth:`Guide.load` needs beside the graph (airspace, limits, source)."""
-    return {METADATA_KEY: _metadata(policy.airspace, policy.limits, source)}
+    """``{METADATA_KEY: json}``: what :meth:`Guide.load` needs beside the graph (airspace, limits, source, action
+    set)."""
+    return {METADATA_KEY: _metadata(policy.airspace, policy.limits, source, policy.actions)}

@@ -261,13 +261,11 @@ class TinyRun:
     stderr: str
 
 
-@pytest.fixture(scope="session")
-def tiny_run(tmp_path_factory, cli_workdir) -> TinyRun:
-    """One real ``python -m agrl.train`` run (4 iterations, seed 0); treat its directory as read-only.
-
-    It is trained once per session, not once per xdist worker: the first worker to ask trains it under a file
-    lock in the session's shared temporary folder (pytest-xdist's documented pattern) and records its result there;
-    the others wait for the lock and read the record (a failed run is recorded too, and fails them the same way)."""
+def _shared_run(tmp_path_factory, cli_workdir, name: str, changes: dict[str, str], iterations: int) -> TinyRun:
+    """One real ``python -m agrl.train`` run of ``tiny_args(changes)`` per test session, not per xdist worker: the
+    first worker to ask trains it under a file lock in the session's shared temporary folder (pytest-xdist's
+    documented pattern) and records its result there; the others wait for the lock and read the record (a failed
+    run is recorded too, and fails them the same way)."""
     import json
 
     from filelock import FileLock
@@ -275,16 +273,31 @@ def tiny_run(tmp_path_factory, cli_workdir) -> TinyRun:
     root = tmp_path_factory.getbasetemp()
     if os.environ.get("PYTEST_XDIST_WORKER"):
         root = root.parent  # this session's folder, shared by its workers (each has its own basetemp below it)
-    folder = root / "tiny_run_shared"
+    folder = root / f"{name}_shared"
     record = folder / "result.json"
-    with FileLock(str(root / "tiny_run_shared.lock")):
+    with FileLock(str(root / f"{name}_shared.lock")):
         if not record.is_file():
             folder.mkdir(exist_ok=True)
-            result = _run_cli("train", *_tiny_args(TINY_RUN_CHANGES), f"hydra.run.dir={folder / 'run'}",
-                              cwd=cli_workdir)
+            result = _run_cli("train", *_tiny_args(changes), f"hydra.run.dir={folder / 'run'}", cwd=cli_workdir)
             record.write_text(json.dumps({"returncode": result.returncode, "stdout": result.stdout,
                                           "stderr": result.stderr}))
     result = json.loads(record.read_text())
-    assert result["returncode"] == 0, f"tiny run failed:\n{result['stdout'][-3000:]}\n{result['stderr'][-3000:]}"
-    return TinyRun(run_dir=folder / "run", changes=dict(TINY_RUN_CHANGES), iterations=TINY_RUN_ITERATIONS,
-                   overrides=_tiny_args(TINY_RUN_CHANGES), stdout=result["stdout"], stderr=result["stderr"])
+    assert result["returncode"] == 0, f"{name} failed:\n{result['stdout'][-3000:]}\n{result['stderr'][-3000:]}"
+    return TinyRun(run_dir=folder / "run", changes=dict(changes), iterations=iterations,
+                   overrides=_tiny_args(changes), stdout=result["stdout"], stderr=result["stderr"])
+
+
+@pytest.fixture(scope="session")
+def tiny_run(tmp_path_factory, cli_workdir) -> TinyRun:
+    """One real ``python -m agrl.train`` run (4 iterations, seed 0); treat its directory as read-only."""
+    return _shared_run(tmp_path_factory, cli_workdir, "tiny_run", TINY_RUN_CHANGES, TINY_RUN_ITERATIONS)
+
+
+#: The shared run of an agent holding targets: 2 iterations, no periodic evaluation.
+TINY_TARGETS_CHANGES = {"actions": "targets", "ppo.total_frames": str(2 * FRAMES_PER_ITERATION)}
+
+
+@pytest.fixture(scope="session")
+def tiny_targets_run(tmp_path_factory, cli_workdir) -> TinyRun:
+    """One real ``python -m agrl.train actions=targets`` run (2 iterations, seed 0); treat it as read-only."""
+    return _shared_run(tmp_path_factory, cli_workdir, "tiny_targets_run", TINY_TARGETS_CHANGES, 2)

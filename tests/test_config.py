@@ -14,6 +14,8 @@ from omegaconf import MISSING
 from omegaconf.errors import ValidationError
 
 from agrl.config import (
+    LEGACY_ACTIONS,
+    ActionsConfig,
     AgentConfig,
     ConfigError,
     CurriculumConfig,
@@ -36,7 +38,7 @@ from agrl.config import (
     to_guidance_parameters,
 )
 from agrl.core.aircraft import GRAVITY
-from agrl.core.parameters import DESTINATION_START, MOTION_FIELDS, DestinationMotion
+from agrl.core.parameters import ACTION_FIELDS, DESTINATION_START, MOTION_FIELDS, ActionKind, DestinationMotion
 from agrl.envs import GuidanceParameters, MotionKind
 
 CONFIG_DIR = str((Path(__file__).resolve().parent.parent / "conf").resolve())
@@ -241,7 +243,7 @@ def test_malformed_device_is_refused(device):
         load(f"device={device}")
 
 
-SCHEMAS = [TaskConfig, RewardConfig, SimulationConfig, ToleranceConfig, LimitsConfig, ManeuverConfig,
+SCHEMAS = [TaskConfig, ActionsConfig, RewardConfig, SimulationConfig, ToleranceConfig, LimitsConfig, ManeuverConfig,
            InitialStateConfig, AgentConfig, PPOConfig, MethodConfig, EvaluationConfig, CurriculumConfig, TrainConfig,
            EvaluateConfig]
 
@@ -290,12 +292,14 @@ def test_every_task_value_comes_from_conf():
     irregular = load("task=irregular", "task.change_probability=0.3", "task.speed_range=[5,40]",
                      "task.max_turn_rate_deg=2.0")
     plain_irregular = load("task=irregular")
-    first, second = (dict(_leaves(to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation)))
+    first, second = (dict(_leaves(to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, actions=cfg.actions)))
                      for cfg in (base, changed))
     same = {path for path in first if first[path] == second[path]}
     # The irregular task's three values are unused by a curved destination: compare them on the irregular task.
     unused_by_curved = {"destination.change_probability", "destination.speed_range", "destination.max_turn_rate_deg"}
-    assert same == {"simulation.gravity", "destination.start", "destination.name"} | unused_by_curved
+    # The action set's values: test_every_action_value_comes_from_conf.
+    actions = {path for path in first if path.startswith("actions.")}
+    assert same == {"simulation.gravity", "destination.start", "destination.name"} | unused_by_curved | actions
     destination, plain = (to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation).destination
                           for cfg in (irregular, plain_irregular))
     for name in ("change_probability", "speed_range", "max_turn_rate_deg"):
@@ -322,6 +326,8 @@ ALLOWED_DEFAULTS = {
     ("DestinationMotion", "start"): DESTINATION_START,  # the paper's Table 1, the same for every task
     # A destination field that only some kinds read is None for the others (DestinationMotion checks its own).
     **{("DestinationMotion", name): None for names in MOTION_FIELDS.values() for name in names},
+    # Likewise an action-set field that only the target-holding actions read.
+    **{("ActionSet", name): None for names in ACTION_FIELDS.values() for name in names},
 }
 
 
@@ -349,7 +355,8 @@ def test_the_records_hold_no_values_but_the_named_constants():
     """conf/ is the one source of each value: the env's records have no defaults of their own."""
     names = {record.__name__ for record in _record_types(GuidanceParameters)}
     assert names == {"GuidanceParameters", "SimulationParameters", "Airspace", "SuccessTolerance", "AircraftLimits",
-                     "ManeuverLoadFactors", "RewardParameters", "InitialStateDistribution", "DestinationMotion"}
+                     "ManeuverLoadFactors", "RewardParameters", "InitialStateDistribution", "DestinationMotion",
+                     "ActionSet"}
     assert record_defaults(GuidanceParameters) == ALLOWED_DEFAULTS
 
 
@@ -420,3 +427,61 @@ def test_every_key_of_the_task_sections_is_a_record_field_of_the_same_name():
     assert _unread(GuidanceParameters, simulation) == {"integration_step", "decision_period", "airspace", "tolerance",
                                                        "limits"}
     assert _unread(SimulationParameters, simulation) == {"max_decisions", "maneuvers", "initial_state", "compile"}
+
+
+# ---------------------------------------------------------------------------- actions
+def test_actions_default_to_the_papers_maneuvers_and_targets_reach_the_env():
+    assert load().actions.name == "maneuvers"
+    assert guidance_parameters().actions.name is ActionKind.MANEUVERS and guidance_parameters().num_actions == 7
+    params = guidance_parameters("actions=targets", "actions.headings=8", "actions.altitude_step=1000",
+                                 "actions.heading_time_constant=3")
+    actions = params.actions
+    assert actions.holds_targets and actions.headings == 8 and actions.altitude_step == 1000.0
+    assert params.num_actions == 1 + 8 + (1 + 4) + 3  # hold, headings, 100 m and 1000..4000 m, speeds
+    assert actions.autopilot(params.maneuvers).heading_time_constant == 3.0
+    assert actions.autopilot(params.maneuvers).turn_load_factor == params.maneuvers.turn
+
+
+@pytest.mark.parametrize(("overrides", "message"), [
+    (("actions=bogus",), "actions=bogus is not allowed: one of maneuvers, targets"),
+    (("actions=targets", "reward=both"), "reward.use_continuous_action=True is not allowed: false with "
+                                         "actions=targets"),
+    (("actions=targets", "actions.cruise_speed=300"), "actions.cruise_speed=300.0 is not allowed: within "
+                                                      "simulation.limits [100.0, 250.0] m/s"),
+    (("actions=targets", "actions.lowest_altitude=600"), "actions.lowest_altitude=600.0 is not allowed: in (0.0, "
+                                                         "500.0) m"),
+    (("actions=targets", "actions.headings=1"), "actions.headings=1 is not allowed: an integer in [2, 360]"),
+    (("actions=targets", "actions.capture_fraction=0"), "actions.capture_fraction=0.0 is not allowed: (0, 1]"),
+    (("actions=targets", "actions.speed_time_constant=-1"), "actions.speed_time_constant=-1.0 is not allowed: > 0 s"),
+])
+def test_a_bad_action_set_is_one_line_naming_the_value(overrides, message):
+    with pytest.raises(ConfigError) as raised:
+        guidance_parameters(*overrides)
+    assert str(raised.value).startswith(message) and "\n" not in str(raised.value)
+    with pytest.raises(ConfigError) as raised:  # the training config's own check, before a run starts
+        load_config(compose_checked(*overrides))
+    assert str(raised.value).startswith(message)
+
+
+def test_a_saved_config_without_actions_flies_the_papers_maneuvers():
+    from agrl.config import saved_guidance_parameters
+
+    cfg = compose_config("actions=targets")
+    saved = {key: dict(value) if hasattr(value, "keys") else value
+             for key, value in __import__("omegaconf").OmegaConf.to_container(cfg, resolve=True).items()}
+    assert saved_guidance_parameters(saved).actions.holds_targets
+    del saved["actions"]
+    assert LEGACY_ACTIONS == {"name": "maneuvers"}
+    assert saved_guidance_parameters(saved).actions.name is ActionKind.MANEUVERS
+
+
+def test_every_action_value_comes_from_conf():
+    base = load("actions=targets")
+    changed = load("actions=targets", "actions.headings=8", "actions.altitude_step=1000", "actions.lowest_altitude=150",
+                   "actions.cruise_speed=180", "actions.heading_time_constant=3", "actions.altitude_time_constant=6",
+                   "actions.flight_path_time_constant=1.5", "actions.speed_time_constant=4",
+                   "actions.capture_fraction=0.6")
+    first, second = (to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, actions=cfg.actions).actions
+                     for cfg in (base, changed))
+    same = {spec.name for spec in dataclasses.fields(first) if getattr(first, spec.name) == getattr(second, spec.name)}
+    assert same == {"name"}

@@ -108,3 +108,25 @@ def test_a_suffix_of_another_format_is_refused(tmp_path, capsys):
     assert capsys.readouterr().err.strip().splitlines()[-1].endswith(
         "is not allowed: format=checkpoint writes a checkpoint, not a .onnx file")
     assert not (tmp_path / "g.onnx").exists()
+
+
+def test_an_agent_holding_targets_exports_with_its_held_targets_input(tiny_targets_run, tmp_path):
+    """Both graphs of an agent holding targets read ``held_targets`` and answer what its TorchRL actor answers;
+    the action set travels in the metadata."""
+    import onnxruntime
+    from test_guide import actor_target_actions, random_held_targets
+
+    aircraft, destination, _ = random_raw_states(1_000, seed=11)
+    held = random_held_targets(aircraft, seed=11)
+    expected = actor_target_actions(tiny_targets_run.run_dir, aircraft, destination, held)
+    for name in ("guide.onnx", "guide.pt2"):
+        assert main([str(tiny_targets_run.run_dir), str(tmp_path / name)]) == 0
+        guide = Guide.load(tmp_path / name)
+        assert guide.holds_targets and guide.num_actions == 26
+        np.testing.assert_array_equal(guide.instruct_batch(aircraft, destination, held), expected)
+        assert guide.instruct(aircraft[0], destination[0], held[0].tolist()) == expected[0]
+    session = onnxruntime.InferenceSession(str(tmp_path / "guide.onnx"), providers=["CPUExecutionProvider"])
+    assert [value.name for value in session.get_inputs()] == ["aircraft_state", "destination_state", "held_targets"]
+    (action,) = session.run(["action"], {"aircraft_state": aircraft, "destination_state": destination,
+                                         "held_targets": held})
+    np.testing.assert_array_equal(action, expected)

@@ -112,3 +112,51 @@ def test_batched_layers_compute_the_actor_network(activation):
         observation = 3 * torch.randn(rows, OBSERVATION_SIZE)
         with torch.inference_mode():
             torch.testing.assert_close(layers(observation), network(observation), atol=1e-5, rtol=1e-5)
+
+
+# ---------------------------------------------------------------------------- an agent holding targets
+def random_held_targets(aircraft: np.ndarray, seed: int = 0) -> np.ndarray:
+    """Held targets near and far from each aircraft's heading, altitude and speed."""
+    rng = np.random.default_rng(seed)
+    count = len(aircraft)
+    return np.stack([rng.uniform(-np.pi, np.pi, count), rng.choice([100.0, 500.0, 2500.0, 4500.0], count),
+                     rng.choice([100.0, 200.0, 250.0], count)], axis=1).astype(np.float32)
+
+
+def actor_target_actions(reference, aircraft, destination, held) -> np.ndarray:
+    """What the TorchRL actor of an agent holding targets answers, its observation from agrl.core."""
+    from agrl.core.observation import target_observation_function
+
+    actor, saved, _ = load_agent(str(reference))
+    simulation = saved_guidance_parameters(saved).simulation
+    observation = target_observation_function("relative")(
+        torch.from_numpy(aircraft), torch.from_numpy(destination), torch.from_numpy(held), simulation.airspace,
+        simulation.limits)
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        return actor(TensorDict({"observation": observation}, batch_size=[len(aircraft)]))["action"].numpy()
+
+
+def test_a_guide_of_an_agent_holding_targets_answers_what_its_actor_answers(tiny_targets_run):
+    guide = Guide.load(tiny_targets_run.run_dir)
+    assert guide.holds_targets and guide.num_actions == len(guide.target_table) == 26
+    aircraft, destination, _ = random_raw_states(2_000, seed=7)
+    held = random_held_targets(aircraft)
+    expected = actor_target_actions(tiny_targets_run.run_dir, aircraft, destination, held)
+    assert len(set(expected.tolist())) > 1  # the check can tell actions apart
+    np.testing.assert_array_equal(guide.instruct_batch(aircraft, destination, held), expected)
+    single = [guide.instruct(aircraft[i], destination[i], held[i].tolist()) for i in range(200)]
+    np.testing.assert_array_equal(np.array(single), expected[:200])
+
+
+@pytest.mark.parametrize(("call", "message"), [
+    (lambda guide: guide.instruct([0, 0, 1000, 200, 0, 0, 0], [0, 0, 0, 0], 3),
+     "held_targets=3 is not allowed: 3 finite numbers (heading rad, altitude m, speed m/s)"),
+    (lambda guide: guide.instruct_batch(np.zeros((2, 7)), np.zeros((2, 4)), np.zeros(2, np.int64)),
+     "held_targets of shape (2,) is not allowed: (N, 3) finite numbers"),
+    (lambda guide: guide.instruct_batch(np.zeros((2, 7)), np.zeros((2, 4)), np.zeros((3, 3))),
+     "held_targets of shape (3, 3) is not allowed: one row per aircraft (2)"),
+])
+def test_an_agent_holding_targets_refuses_a_maneuver_agents_question(tiny_targets_run, call, message):
+    with pytest.raises(GuideError) as raised:
+        call(Guide.load(tiny_targets_run.run_dir))
+    assert str(raised.value) == message

@@ -208,3 +208,59 @@ def test_bad_input_is_one_line_naming_the_value_and_writes_nothing(tmp_path, cap
     assert message in captured.err
     assert list(tmp_path.iterdir()) == []
 
+
+
+# ---------------------------------------------------------------------------- an agent holding targets
+def replay_targets(guide: Guide, params, aircraft: list[float]) -> dict:
+    """Fly the guide's actions through a one-row GuidanceEnv (the training env); it counts the instructions."""
+    import torch
+
+    from agrl.envs import GuidanceEnv
+
+    env = GuidanceEnv(params, num_envs=1, seed=0)
+    state = env.reset(env.scenario(aircraft_state=torch.tensor(aircraft)))
+    actions, path, counts = [], [state["aircraft_state"][0].tolist()], []
+    while not bool(state["done"].any()):
+        action = guide.instruct(state["aircraft_state"][0].tolist(), state["destination_state"][0].tolist(),
+                                state["held_targets"][0].tolist())
+        state["action"] = torch.tensor([action])
+        state = env.step(state)["next"]
+        actions.append(action)
+        path.append(state["aircraft_state"][0].tolist())
+        counts.append(int(state["instruction_count"][0]))
+    return {"actions": actions, "aircraft": np.array(path), "instructions": counts[-1],
+            "outcome": ("running", "success", "out_of_airspace", "budget_exhausted")[int(state["outcome"][0])]}
+
+
+def test_a_plan_of_an_agent_holding_targets_is_what_the_training_env_flies(tiny_targets_run):
+    guide = Guide.load(tiny_targets_run.run_dir)
+    params = task_parameters(guide)
+    assert params.actions.holds_targets
+    start = [float(value) for value in START]
+    result = plan(guide, params, start)
+    replayed = replay_targets(guide, params, start)
+    assert result.trajectory.maneuvers == replayed["actions"] and result.outcome == replayed["outcome"]
+    assert len(result.instructions) == replayed["instructions"]
+    np.testing.assert_allclose(np.array(result.trajectory.aircraft), replayed["aircraft"], atol=1e-3)
+    assert result.flight_time_s == pytest.approx(3.0 * result.decisions)
+
+
+class ScriptedTargetGuide(ScriptedGuide):
+    holds_targets = True
+
+
+def test_target_instructions_are_changes_of_a_target_in_a_controllers_words(tiny_targets_run):
+    guide = Guide.load(tiny_targets_run.run_dir)
+    table = guide.target_table
+    index = {(int(kind), round(float(value), 3)): row for row, (kind, value) in
+             enumerate(zip(table.kind.tolist(), table.value.tolist(), strict=True))}
+    hold, heading_90, heading_0 = 0, index[(1, round(np.pi / 2, 3))], index[(1, 0.0)]
+    climb, descend, slow = index[(2, 3500.0)], index[(2, 100.0)], index[(3, 100.0)]
+    script = [hold, heading_0, climb, climb, heading_90, hold, slow, descend]
+    params = dataclasses.replace(task_parameters(guide), max_decisions=len(script))
+    result = plan(ScriptedTargetGuide(script), params, [float(value) for value in START])
+    assert result.outcome == "budget_exhausted" and result.trajectory.maneuvers == script
+    # hold and heading 0 (already flown) and the same climb again are no instructions; +x east, +y north
+    assert [(instruction.time_s, instruction.name, instruction.text) for instruction in result.instructions] == [
+        (6.0, "altitude", "climb to 3 500 m"), (12.0, "heading", "turn left heading 000"),
+        (18.0, "speed", "reduce speed to 100 m/s"), (21.0, "altitude", "descend to 100 m")]

@@ -77,6 +77,7 @@ def test_an_old_guide_export_s_limits_in_radians_still_load(tmp_path):
     airspace = {"x_min": -1.0, "x_max": 1.0, "y_min": -1.0, "y_max": 1.0, "z_min": 0.0, "z_max": 1.0}
     old = json.dumps({"airspace": airspace,
                       "limits": {"min_speed": 100.0, "max_speed": 250.0, "max_flight_path_angle": math.radians(30.0)}})
-    _, limits, _ = _from_metadata(old, tmp_path / "old.onnx")
+    _, limits, _, actions = _from_metadata(old, tmp_path / "old.onnx")
     assert limits.max_flight_path_angle == math.radians(30.0)  # the radians the export was made with, exactly
     assert abs(limits.max_flight_path_angle_deg - 30.0) < 1e-12
+    assert not actions.holds_targets  # an export written before action sets existed flies the paper's maneuvers

@@ -69,6 +69,15 @@ SHIPPED_AGENTS: dict[str, ShippedAgent] = {agent.name: agent for agent in (
          "--evaluation <run>/eval/eval.json"),
     ),
     ShippedAgent(
+        "baseline-targets", "fixed_baseline_targets.pt",
+        "the fixed-destination baseline with target-holding actions (actions=targets: heading, altitude and speed "
+        "clearances an autopilot flies): make train-targets' two stages, seed 0; method=pretrained starts from it "
+        "for actions=targets",
+        ("make train-targets",
+         "python -m agrl.export <run>/stage2/checkpoints/latest.pt fixed_baseline_targets.pt "
+         "--evaluation <run>/stage2/eval/eval.json"),
+    ),
+    ShippedAgent(
         "baseline-absolute", "fixed_baseline_absolute.pt",
         "baseline-both-terms distilled onto the paper's absolute observation (equation 4), for runs with "
         "agent.observation=absolute (PPO from scratch learns the fixed destination far more slowly on it)",

@@ -22,6 +22,7 @@ from agrl.config.compose import (
     validated_section,
 )
 from agrl.config.records import (
+    LEGACY_ACTIONS,
     RENAMED_KEYS,
     build_record,
     guidance_parameters,
@@ -48,6 +49,7 @@ from agrl.config.schemas import (
 from agrl.config.task import (
     MAX_DESTINATION_SPEED,
     MAX_TURNING_RADIUS,
+    ActionsConfig,
     InitialStateConfig,
     LimitsConfig,
     ManeuverConfig,
@@ -55,18 +57,19 @@ from agrl.config.task import (
     SimulationConfig,
     TaskConfig,
     ToleranceConfig,
+    require_actions_fit,
     require_max_decisions,
     require_shorthands_used,
     task_label,
 )
 
 __all__ = [
-    "MAX_DESTINATION_SPEED", "MAX_TURNING_RADIUS", "RENAMED_KEYS", "AgentConfig", "ConfigError", "CurriculumConfig",
-    "EvaluateConfig", "EvaluationConfig", "InitialStateConfig", "LimitsConfig", "ManeuverConfig", "MethodConfig",
-    "PPOConfig", "RewardConfig", "SimulationConfig", "TaskConfig", "ToleranceConfig", "TrainConfig", "build_record",
-    "compose_checked", "compose_config", "config_options", "guidance_parameters", "load_config", "method_class",
-    "method_config", "method_names", "one_line", "override_key", "register_configs", "register_method", "require",
-    "require_baseline", "require_device", "require_max_decisions", "require_range_pair", "require_shorthands_used",
-    "saved_agent_config", "saved_guidance_parameters", "task_label", "to_guidance_parameters", "upgraded_config",
-    "validated_section",
+    "LEGACY_ACTIONS", "MAX_DESTINATION_SPEED", "MAX_TURNING_RADIUS", "RENAMED_KEYS", "ActionsConfig", "AgentConfig",
+    "ConfigError", "CurriculumConfig", "EvaluateConfig", "EvaluationConfig", "InitialStateConfig", "LimitsConfig",
+    "ManeuverConfig", "MethodConfig", "PPOConfig", "RewardConfig", "SimulationConfig", "TaskConfig", "ToleranceConfig",
+    "TrainConfig", "build_record", "compose_checked", "compose_config", "config_options", "guidance_parameters",
+    "load_config", "method_class", "method_config", "method_names", "one_line", "override_key", "register_configs",
+    "register_method", "require", "require_actions_fit", "require_baseline", "require_device", "require_max_decisions",
+    "require_range_pair", "require_shorthands_used", "saved_agent_config", "saved_guidance_parameters", "task_label",
+    "to_guidance_parameters", "upgraded_config", "validated_section",
 ]

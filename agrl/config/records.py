@@ -20,7 +20,7 @@ from typing import Any
 from agrl.config.checks import ConfigError
 from agrl.config.compose import compose_checked, load_config, validated_section
 from agrl.config.schemas import AgentConfig
-from agrl.config.task import RewardConfig, SimulationConfig, TaskConfig
+from agrl.config.task import ActionsConfig, RewardConfig, SimulationConfig, TaskConfig, require_actions_fit
 from agrl.core.observation import LEGACY_OBSERVATION
 from agrl.core.parameters import GuidanceParameters
 
@@ -99,14 +99,24 @@ def build_record(record_type: type, values: Mapping[str, Any]) -> Any:
     return record_type(**arguments)
 
 
+#: The ``actions`` section of a config written before action sets existed: the paper's seven maneuvers.
+LEGACY_ACTIONS = {"name": "maneuvers"}
+
+
 def to_guidance_parameters(task: TaskConfig, reward: RewardConfig, simulation: SimulationConfig,
-                           compile: bool | None = None) -> GuidanceParameters:
+                           compile: bool | None = None, actions: ActionsConfig | None = None) -> GuidanceParameters:
     """The records of :mod:`agrl.envs` from validated config sections (``compile``, if given, replaces
     ``simulation.compile``). :class:`GuidanceParameters` holds the ``reward`` section, the ``task`` section (its
-    ``destination``) and the ``simulation`` section's records and values; its ``simulation`` record reads its own
-    fields (steps, airspace, tolerance, limits) from the same section."""
+    ``destination``), the ``actions`` section (None: the paper's maneuvers, :data:`LEGACY_ACTIONS`) and the
+    ``simulation`` section's records and values; its ``simulation`` record reads its own fields (steps, airspace,
+    tolerance, limits) from the same section. The action set is checked against the others here
+    (:func:`agrl.config.task.require_actions_fit`)."""
+    if actions is None:
+        actions = validated_section(ActionsConfig, LEGACY_ACTIONS)
+    require_actions_fit(actions, reward, simulation)
     section = asdict(simulation)
-    values = {**section, "simulation": section, "reward": asdict(reward), "destination": asdict(task)}
+    values = {**section, "simulation": section, "reward": asdict(reward), "destination": asdict(task),
+              "actions": asdict(actions)}
     if compile is not None:
         values["compile"] = compile
     return build_record(GuidanceParameters, values)
@@ -118,7 +128,8 @@ def guidance_parameters(*overrides: str, compile: bool = False) -> GuidanceParam
     step with torch.compile (training's choice, ``simulation.compile``); off here for one-off and test use.
     Raises :class:`ConfigError` (one line) on a bad value."""
     config = load_config(compose_checked(*overrides))
-    return to_guidance_parameters(config.task, config.reward, config.simulation, compile=compile)
+    return to_guidance_parameters(config.task, config.reward, config.simulation, compile=compile,
+                                  actions=config.actions)
 
 
 def saved_agent_config(saved: dict) -> AgentConfig:
@@ -130,13 +141,16 @@ def saved_agent_config(saved: dict) -> AgentConfig:
 
 def saved_guidance_parameters(saved: dict, task: TaskConfig | None = None,
                               compile: bool | None = None) -> GuidanceParameters:
-    """The task a checkpoint's saved config describes (or ``task`` instead of its own), validated; a config with
-    the old keys is read through :func:`upgraded_config`."""
+    """The task a checkpoint's saved config describes (or ``task`` instead of its own), validated, with the
+    checkpoint's action set (a config without one: :data:`LEGACY_ACTIONS`); a config with the old keys is read
+    through :func:`upgraded_config`."""
     saved = upgraded_config(saved)
     task = task if task is not None else validated_section(TaskConfig, saved["task"])
     return to_guidance_parameters(task, validated_section(RewardConfig, saved["reward"]),
-                                  validated_section(SimulationConfig, saved["simulation"]), compile=compile)
+                                  validated_section(SimulationConfig, saved["simulation"]), compile=compile,
+                                  actions=validated_section(ActionsConfig, saved.get("actions", LEGACY_ACTIONS),
+                                                            prefix="actions"))
 
 
-__all__ = ["ConfigError", "RENAMED_KEYS", "build_record", "guidance_parameters", "saved_agent_config",
+__all__ = ["ConfigError", "LEGACY_ACTIONS", "RENAMED_KEYS", "build_record", "guidance_parameters", "saved_agent_config",
            "saved_guidance_parameters", "to_guidance_parameters", "upgraded_config"]

@@ -12,7 +12,14 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 from agrl.baselines import shipped_agent_names
 from agrl.config.checks import require, require_device
 from agrl.config.compose import validated_section
-from agrl.config.task import RewardConfig, SimulationConfig, TaskConfig, require_shorthands_used
+from agrl.config.task import (
+    ActionsConfig,
+    RewardConfig,
+    SimulationConfig,
+    TaskConfig,
+    require_actions_fit,
+    require_shorthands_used,
+)
 
 
 # ---------------------------------------------------------------------------- agent, PPO, method
@@ -196,6 +203,7 @@ class TrainConfig:
     task: Any = MISSING
     reward: Any = MISSING
     simulation: Any = MISSING
+    actions: Any = MISSING
     agent: Any = MISSING
     ppo: Any = MISSING
     method: Any = MISSING  # a MethodConfig subclass: the schema of the method it names (method_config)
@@ -218,6 +226,7 @@ class TrainConfig:
         require(self.threads is None or self.threads >= 1, "threads", self.threads, "null or an integer >= 1")
         require(self.checkpoint_interval >= 1, "checkpoint_interval", self.checkpoint_interval, ">= 1")
         require(0 <= self.target_success <= 1, "target_success", self.target_success, "[0, 1]")
+        require_actions_fit(self.actions, self.reward, self.simulation)
         workers = self.ppo.collector_workers
         require(workers == 1 or not self.resume, "ppo.collector_workers", workers,
                  "1 with resume (exact resume needs the single in-process collector's carried rows)")
@@ -261,7 +270,7 @@ def register_configs() -> None:
     store.store(name="evaluate_schema", node=EvaluateConfig)
     for group, node in (
         ("task", TaskConfig), ("reward", RewardConfig), ("simulation", SimulationConfig),
-        ("agent", AgentConfig), ("ppo", PPOConfig),
+        ("actions", ActionsConfig), ("agent", AgentConfig), ("ppo", PPOConfig),
     ):
         store.store(group=f"schema/{group}", name="base", node=node)
 

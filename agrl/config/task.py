@@ -10,12 +10,13 @@ in ``conf/reward/both.yaml`` and in ``docs/model.md``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from omegaconf import MISSING
 
 from agrl.config.checks import ConfigError, require, require_range_pair
-from agrl.core.parameters import MOTION_FIELDS, MotionKind, tasks_taking
+from agrl.core.parameters import ACTION_FIELDS, MOTION_FIELDS, ActionKind, MotionKind, tasks_taking
 
 # ---------------------------------------------------------------------------- task
 #: The largest destination speed a task takes (m/s): ten times the paper's fastest (100 m/s), far above any target
@@ -82,6 +83,56 @@ def task_label(task) -> str:
     if task.name == "curved":
         return f"curved {task.speed:g} m/s, radius {task.radius:g} m"
     return str(task.name)
+
+
+# ---------------------------------------------------------------------------- actions
+@dataclass
+class ActionsConfig:
+    """The agent's actions (:class:`agrl.core.parameters.ActionSet`): ``maneuvers`` (the paper's seven) or
+    ``targets`` (held heading, altitude and speed); the fields each reads: ``ACTION_FIELDS``."""
+
+    name: str = MISSING  # maneuvers | targets
+    headings: int | None = None  # targets: evenly spaced target headings
+    altitude_step: float | None = None  # targets: m between target altitudes
+    lowest_altitude: float | None = None  # targets: m
+    cruise_speed: float | None = None  # targets: m/s
+    heading_time_constant: float | None = None  # targets: s
+    altitude_time_constant: float | None = None  # targets: s
+    flight_path_time_constant: float | None = None  # targets: s
+    speed_time_constant: float | None = None  # targets: s
+    capture_fraction: float | None = None  # targets
+
+    def __post_init__(self) -> None:
+        kinds = [kind.value for kind in ActionKind]
+        require(self.name in kinds, "actions", self.name, f"one of {', '.join(kinds)}")
+        for key in ACTION_FIELDS[self.name]:
+            require(getattr(self, key) is not None, f"actions.{key}", None, f"actions={self.name} needs a value")
+        if self.name != ActionKind.TARGETS:
+            return
+        require(2 <= self.headings <= 360, "actions.headings", self.headings, "an integer in [2, 360]")
+        require(self.altitude_step > 0, "actions.altitude_step", self.altitude_step, "> 0 m")
+        for key in ("heading_time_constant", "altitude_time_constant", "flight_path_time_constant",
+                    "speed_time_constant"):
+            require(getattr(self, key) > 0, f"actions.{key}", getattr(self, key), "> 0 s")
+        require(0 < self.capture_fraction <= 1, "actions.capture_fraction", self.capture_fraction, "(0, 1]")
+
+
+def require_actions_fit(actions: ActionsConfig, reward: RewardConfig, simulation: SimulationConfig) -> None:
+    """Checks of the action set against the other sections: a target speed within the aircraft's limits, target
+    altitudes inside the airspace, and no continuous-action term with targets (equation 9 prices a change of
+    maneuver; a target agent's instructions are priced by ``reward.switch_cost``)."""
+    if actions.name != ActionKind.TARGETS:
+        return
+    limits, space = simulation.limits, simulation.airspace
+    require(limits.min_speed <= actions.cruise_speed <= limits.max_speed, "actions.cruise_speed",
+             actions.cruise_speed, f"within simulation.limits [{limits.min_speed}, {limits.max_speed}] m/s")
+    next_level = min((math.floor(space["z_min"] / actions.altitude_step) + 1) * actions.altitude_step,
+                     space["z_max"])
+    require(space["z_min"] < actions.lowest_altitude < next_level, "actions.lowest_altitude",
+             actions.lowest_altitude, f"in ({space['z_min']}, {next_level}) m: above the airspace's floor, below "
+             "the other target altitudes")
+    require(not reward.use_continuous_action, "reward.use_continuous_action", reward.use_continuous_action,
+             "false with actions=targets (equation 9 prices changes of maneuver; use reward.switch_cost)")
 
 
 # ---------------------------------------------------------------------------- reward

@@ -21,8 +21,9 @@ too: ``phi = atan2(n sin(phi), n cos(phi))``. With ``tau_z = 4 tau_theta`` the a
 damped where nothing limits it (small steps follow ``e(t) = e0 (1 + t / (2 tau_theta)) exp(-t / (2 tau_theta))``).
 
 The action set (:func:`target_action_table`): 12 headings 30 degrees apart, an altitude every 500 m inside the
-airspace, the minimum, cruise and maximum speeds, and "hold everything". An action sets one target and keeps the
-others (:func:`apply_target_action`); an instruction is an action that changes a target.
+airspace and one low level for a destination on its floor, the minimum, cruise and maximum speeds, and "hold
+everything". An action sets one target and keeps the others (:func:`apply_target_action`); an instruction is an
+action that changes a target.
 """
 
 from __future__ import annotations
@@ -168,11 +169,13 @@ def target_action_table(
     cruise_speed: float,
     headings: int = 12,
     altitude_step: float = 500.0,
+    lowest_altitude: float | None = None,
     dtype: torch.dtype = torch.float32,
 ) -> TargetActionTable:
     """The target-holding actions: "hold everything" (action 0), ``headings`` headings evenly spaced from
-    ``psi = 0``, an altitude every ``altitude_step`` m strictly inside ``altitude_range`` (m), and the minimum,
-    cruise and maximum speeds (m/s)."""
+    ``psi = 0``, an altitude every ``altitude_step`` m strictly inside ``altitude_range`` (m) with
+    ``lowest_altitude`` (m, inside the range; for a destination on the airspace's floor) below them, and the
+    minimum, cruise and maximum speeds (m/s)."""
     low, high = altitude_range
     if not low < high:
         raise ValueError(f"altitude_range={altitude_range} must be (low, high) with low < high")
@@ -180,6 +183,11 @@ def target_action_table(
         raise ValueError(f"cruise_speed={cruise_speed} m/s must be within [{limits.min_speed}, {limits.max_speed}]")
     first = math.floor(low / altitude_step) + 1
     altitudes = [step * altitude_step for step in range(first, math.ceil(high / altitude_step))]
+    if lowest_altitude is not None:
+        if not low < lowest_altitude < (altitudes[0] if altitudes else high):
+            raise ValueError(f"lowest_altitude={lowest_altitude} m must be above {low} m and below the other "
+                             f"target altitudes ({altitudes[0] if altitudes else high} m)")
+        altitudes.insert(0, lowest_altitude)
     rows = [(TargetKind.HOLD, 0.0)]
     rows += [(TargetKind.HEADING, wrap_angle(torch.tensor(2 * math.pi * index / headings)).item())
              for index in range(headings)]

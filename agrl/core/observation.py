@@ -28,8 +28,8 @@ import torch
 from agrl.core.aircraft import MANEUVER_NAMES, AircraftLimits, wrap_angle
 from agrl.core.termination import Airspace
 
-#: Names of the policy-input features, in order.
-OBSERVATION_FEATURES = (
+#: Names of the relative observation's geometric features (:func:`relative_features`), in order.
+RELATIVE_FEATURES = (
     "horizontal_distance",  # / airspace half-width
     "bearing_sin",  # bearing of the destination relative to the aircraft's heading
     "bearing_cos",
@@ -46,7 +46,11 @@ OBSERVATION_FEATURES = (
     "altitude",  # mapped to [-1, 1] over the airspace height
     "x",  # mapped to [-1, 1] over the airspace
     "y",
-) + tuple(f"last_action_{name}" for name in MANEUVER_NAMES)
+)
+#: The maneuver an agent flies, one-hot: what a maneuver agent's input ends with.
+LAST_MANEUVER_FEATURES = tuple(f"last_action_{name}" for name in MANEUVER_NAMES)
+#: Names of the policy-input features (relative observation, maneuver agent), in order.
+OBSERVATION_FEATURES = RELATIVE_FEATURES + LAST_MANEUVER_FEATURES
 
 OBSERVATION_SIZE = len(OBSERVATION_FEATURES)
 
@@ -57,8 +61,8 @@ NEAR_ALTITUDE_SCALE = 500.0  # m
 NEAR_DISTANCE_SCALE = 2_000.0  # m
 
 
-#: Equation 4's fields as the network sees them with ``agent.observation=absolute``.
-ABSOLUTE_OBSERVATION_FEATURES = (
+#: Equation 4's positions and headings as the network sees them with ``agent.observation=absolute``.
+ABSOLUTE_FEATURES = (
     "x",  # mapped to [-1, 1] over the airspace
     "y",
     "altitude",  # mapped to [-1, 1] over the airspace height
@@ -80,7 +84,9 @@ ABSOLUTE_OBSERVATION_FEATURES = (
     "destination_x_near",
     "destination_y_near",
     "destination_altitude_near",
-) + tuple(f"last_action_{name}" for name in MANEUVER_NAMES)
+)
+#: Equation 4's fields as a maneuver agent sees them with ``agent.observation=absolute``.
+ABSOLUTE_OBSERVATION_FEATURES = ABSOLUTE_FEATURES + LAST_MANEUVER_FEATURES
 
 def _one_hot(last_action: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
     """The last maneuver, one-hot by comparison: F.one_hot's values without its range check (a pass over the batch)."""
@@ -99,7 +105,17 @@ def policy_observation(
     airspace: Airspace,
     limits: AircraftLimits,
 ) -> torch.Tensor:
-    """Normalised, relative-frame policy input ``(..., OBSERVATION_SIZE)`` from equation 4's fields."""
+    """Normalised, relative-frame policy input ``(..., OBSERVATION_SIZE)`` from equation 4's fields: the
+    :func:`relative_features`, then the last maneuver one-hot."""
+    features = relative_features(aircraft_state, destination_state, airspace, limits)
+    return torch.cat((features, _one_hot(last_action, features.dtype)), dim=-1)
+
+
+def relative_features(
+    aircraft_state: torch.Tensor, destination_state: torch.Tensor, airspace: Airspace, limits: AircraftLimits
+) -> torch.Tensor:
+    """The destination in the aircraft's frame and the aircraft in the destination's and the airspace's,
+    normalised: ``(..., len(RELATIVE_FEATURES))``."""
     x, y, z, speed, flight_path_angle, heading, bank = aircraft_state.unbind(-1)
     dest_x, dest_y, dest_z, dest_heading = destination_state.unbind(-1)
     half_width = 0.5 * max(airspace.x_max - airspace.x_min, airspace.y_max - airspace.y_min)
@@ -113,7 +129,7 @@ def policy_observation(
     along_track = -(cos_dest * dx + sin_dest * dy)
     cross_track = sin_dest * dx - cos_dest * dy
 
-    features = torch.stack(
+    return torch.stack(
         (
             distance / half_width,
             torch.sin(bearing),
@@ -134,7 +150,6 @@ def policy_observation(
         ),
         dim=-1,
     )
-    return torch.cat((features, _one_hot(last_action, features.dtype)), dim=-1)
 
 
 def absolute_observation(
@@ -148,11 +163,20 @@ def absolute_observation(
 
     Each input is a function of one field of ``S_t``: positions mapped to [-1, 1] over the airspace and again
     on a fine scale (``tanh(x / 2 km)``, ``tanh(z / 500 m)``), headings as sine and cosine. No relative quantity
-    is computed, so the network must learn the geometry itself (the paper's input interface).
+    is computed, so the network must learn the geometry itself (the paper's input interface). The
+    :func:`absolute_features`, then the last maneuver one-hot.
     """
+    features = absolute_features(aircraft_state, destination_state, airspace, limits)
+    return torch.cat((features, _one_hot(last_action, features.dtype)), dim=-1)
+
+
+def absolute_features(
+    aircraft_state: torch.Tensor, destination_state: torch.Tensor, airspace: Airspace, limits: AircraftLimits
+) -> torch.Tensor:
+    """Equation 4's positions and headings, normalised: ``(..., len(ABSOLUTE_FEATURES))``."""
     x, y, z, speed, flight_path_angle, heading, bank = aircraft_state.unbind(-1)
     dest_x, dest_y, dest_z, dest_heading = destination_state.unbind(-1)
-    features = torch.stack(
+    return torch.stack(
         (
             _to_unit_interval(x, airspace.x_min, airspace.x_max),
             _to_unit_interval(y, airspace.y_min, airspace.y_max),
@@ -176,7 +200,6 @@ def absolute_observation(
         ),
         dim=-1,
     )
-    return torch.cat((features, _one_hot(last_action, features.dtype)), dim=-1)
 
 
 def in_destination_frame(
@@ -224,10 +247,11 @@ def held_target_features(
     ), dim=-1)
 
 
-#: ``agent.observation`` -> (the function computing its policy input from equation 4's fields, its feature names).
+#: ``agent.observation`` -> (the function computing a maneuver agent's policy input from equation 4's fields, its
+#: feature names; the geometric features alone, for an agent holding targets).
 OBSERVATIONS = {
-    "relative": (policy_observation, OBSERVATION_FEATURES),
-    "absolute": (absolute_observation, ABSOLUTE_OBSERVATION_FEATURES),
+    "relative": (policy_observation, OBSERVATION_FEATURES, relative_features, RELATIVE_FEATURES),
+    "absolute": (absolute_observation, ABSOLUTE_OBSERVATION_FEATURES, absolute_features, ABSOLUTE_FEATURES),
 }
 #: What a checkpoint written before ``agent.observation`` existed reads (the shipped ``baseline-both-terms`` among
 #: them).
@@ -241,10 +265,31 @@ def _observation(kind: str):
 
 
 def observation_function(kind: str):
-    """The function computing observation ``kind``'s policy input from equation 4's fields."""
+    """The function computing observation ``kind``'s policy input from equation 4's fields (a maneuver agent's:
+    the geometry, then the last maneuver)."""
     return _observation(kind)[0]
 
 
-def observation_size(kind: str) -> int:
-    """Width of the policy input of observation ``kind`` (relative or absolute)."""
-    return len(_observation(kind)[1])
+def target_observation_function(kind: str):
+    """The function computing observation ``kind``'s policy input for an agent holding targets:
+    ``(aircraft_state, destination_state, held_targets, airspace, limits) -> (..., size)``, the geometric features
+    of ``kind``, then :func:`held_target_features` (the held targets take the last maneuver's place)."""
+    geometry = _observation(kind)[2]
+
+    def observe(aircraft_state, destination_state, held_targets, airspace, limits):
+        return torch.cat((geometry(aircraft_state, destination_state, airspace, limits),
+                          held_target_features(aircraft_state, held_targets, airspace, limits)), dim=-1)
+
+    return observe
+
+
+def observation_features(kind: str, holds_targets: bool = False) -> tuple[str, ...]:
+    """The names of observation ``kind``'s features, in order, for a maneuver agent or one holding targets."""
+    entry = _observation(kind)
+    return entry[3] + HELD_TARGET_FEATURES if holds_targets else entry[1]
+
+
+def observation_size(kind: str, holds_targets: bool = False) -> int:
+    """Width of the policy input of observation ``kind`` (relative or absolute), for a maneuver agent or one
+    holding targets."""
+    return len(observation_features(kind, holds_targets))

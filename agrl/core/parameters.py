@@ -8,11 +8,13 @@ from enum import StrEnum
 
 import torch
 
-from agrl.core.aircraft import ManeuverControls, maneuver_table
+from agrl.core.aircraft import MANEUVER_NAMES, AircraftLimits, ManeuverControls, maneuver_table
+from agrl.core.autopilot import AutopilotParameters, TargetActionTable, target_action_table
 from agrl.core.destinations import curved_turn_rate
 from agrl.core.initial_states import InitialStateDistribution
 from agrl.core.reward import RewardParameters
 from agrl.core.simulation import SimulationParameters
+from agrl.core.termination import Airspace
 
 
 class MotionKind(StrEnum):
@@ -105,6 +107,75 @@ class ManeuverLoadFactors:
         )
 
 
+class ActionKind(StrEnum):
+    """What an action is (``actions``): one of the paper's seven maneuvers, or a held target (heading, altitude,
+    speed) that an autopilot flies (:mod:`agrl.core.autopilot`)."""
+
+    MANEUVERS = "maneuvers"
+    TARGETS = "targets"
+
+
+#: The :class:`ActionSet` fields each action set reads (the others stay None), as :data:`MOTION_FIELDS`.
+ACTION_FIELDS = {
+    "maneuvers": (),
+    "targets": ("headings", "altitude_step", "lowest_altitude", "cruise_speed", "heading_time_constant",
+                "altitude_time_constant", "flight_path_time_constant", "speed_time_constant", "capture_fraction"),
+}
+
+
+@dataclass(frozen=True)
+class ActionSet:
+    """The agent's actions (``conf/actions/*.yaml``, under the same names): the paper's seven maneuvers, or
+    target-holding actions (``targets``: :func:`agrl.core.autopilot.target_action_table`, flown by the autopilot
+    with the time constants here and the maneuvers' load factors). Fields ``name`` does not read stay None."""
+
+    name: ActionKind
+    headings: int | None = None  # evenly spaced target headings
+    altitude_step: float | None = None  # m between target altitudes
+    lowest_altitude: float | None = None  # m: a target altitude below the others
+    cruise_speed: float | None = None  # m/s: the middle target speed
+    heading_time_constant: float | None = None  # s: tau_psi
+    altitude_time_constant: float | None = None  # s: tau_z
+    flight_path_time_constant: float | None = None  # s: tau_theta
+    speed_time_constant: float | None = None  # s: tau_v
+    capture_fraction: float | None = None  # of the vertical acceleration the load factors allow
+
+    def __post_init__(self) -> None:
+        kind = ActionKind(self.name)
+        missing = [name for name in ACTION_FIELDS[kind.value] if getattr(self, name) is None]
+        if missing:
+            raise ValueError(f"ActionSet {missing[0]}=None is not allowed: name={kind.value} needs "
+                             f"{', '.join(ACTION_FIELDS[kind.value])}")
+
+    @property
+    def holds_targets(self) -> bool:
+        return ActionKind(self.name) is ActionKind.TARGETS
+
+    def autopilot(self, maneuvers: ManeuverLoadFactors) -> AutopilotParameters | None:
+        """The autopilot flying held targets within the maneuvers' load factors (None for maneuvers)."""
+        if not self.holds_targets:
+            return None
+        return AutopilotParameters(
+            turn_load_factor=maneuvers.turn, pull_up_load_factor=maneuvers.pull_up,
+            push_over_load_factor=maneuvers.push_over, acceleration_load_factor=maneuvers.acceleration,
+            deceleration_load_factor=maneuvers.deceleration, heading_time_constant=self.heading_time_constant,
+            altitude_time_constant=self.altitude_time_constant,
+            flight_path_time_constant=self.flight_path_time_constant,
+            speed_time_constant=self.speed_time_constant, capture_fraction=self.capture_fraction,
+        )
+
+    def target_table(self, airspace: Airspace, limits: AircraftLimits) -> TargetActionTable | None:
+        """The target-holding actions inside ``airspace``'s heights and the speed ``limits`` (None for maneuvers)."""
+        if not self.holds_targets:
+            return None
+        return target_action_table((airspace.z_min, airspace.z_max), limits, self.cruise_speed, self.headings,
+                                   self.altitude_step, self.lowest_altitude)
+
+    def count(self, airspace: Airspace, limits: AircraftLimits) -> int:
+        """How many actions there are (7 maneuvers; 26 targets with ``conf/actions/targets.yaml``)."""
+        return len(self.target_table(airspace, limits)) if self.holds_targets else len(MANEUVER_NAMES)
+
+
 @dataclass(frozen=True)
 class GuidanceParameters:
     """Everything that defines a guidance task for :class:`agrl.envs.GuidanceEnv`.
@@ -120,7 +191,12 @@ class GuidanceParameters:
     reward: RewardParameters
     initial_state: InitialStateDistribution
     destination: DestinationMotion
+    actions: ActionSet
     max_decisions: int  # decision budget ("control times"), this project's choice
     # Fuse the 20 ms integration step with torch.compile. Training turns it on (conf/simulation/paper.yaml),
     # tests and single-episode tools choose eager; keyword-only so that each caller says which.
     compile: bool = field(kw_only=True)
+
+    @property
+    def num_actions(self) -> int:
+        return self.actions.count(self.simulation.airspace, self.simulation.limits)

@@ -16,18 +16,21 @@ from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
 from agrl.config.task import require_max_decisions
-from agrl.core.aircraft import MANEUVER_NAMES
+from agrl.core.aircraft import AIRCRAFT_FIELDS, MANEUVER_NAMES
+from agrl.core.autopilot import HeldTargets, apply_target_action
 from agrl.core.destinations import redraw_irregular_motion
 from agrl.core.initial_states import sample_initial_aircraft
-from agrl.core.observation import observation_function, observation_size
+from agrl.core.observation import observation_function, observation_size, target_observation_function
 from agrl.core.parameters import GuidanceParameters, MotionKind
 from agrl.core.reward import REWARD_PART_KEYS, step_reward
 from agrl.core.simulation import DecisionResult, DecisionSimulator
 from agrl.core.termination import Outcome
 
+#: The paper's maneuvers (``actions=maneuvers``); an env's own count: ``GuidanceEnv.num_actions``.
 NUM_ACTIONS = len(MANEUVER_NAMES)
 
-#: Entries that together are the full simulator state of one row.
+#: Entries that together are the full simulator state of one row (a maneuver agent's; an agent holding targets
+#: adds :data:`HELD_TARGETS_KEY`: ``GuidanceEnv.row_keys``).
 STATE_KEYS = (
     "aircraft_state",
     "destination_state",
@@ -41,14 +44,21 @@ STATE_KEYS = (
 )
 #: Entries a scenario (explicit initial conditions) provides; see :meth:`GuidanceEnv.scenario`.
 SCENARIO_KEYS = ("aircraft_state", "destination_state", "destination_speed", "destination_turn_rate")
+#: The targets an agent with ``actions=targets`` holds, ``(..., 3)``: heading rad, altitude m, speed m/s.
+HELD_TARGETS_KEY = "held_targets"
+#: Where the held targets' fields are in ``aircraft_state`` (an episode starts holding what the aircraft flies).
+_HELD_FIELDS = [AIRCRAFT_FIELDS.index(name) for name in ("heading", "z", "speed")]
 
 
 class GuidanceEnv(EnvBase):
     """Aircraft guidance to a fixed or moving destination (the paper's MDP), batched.
 
-    Each step is one 3 s decision made of 150 integration steps of 20 ms. Actions
-    are the seven maneuvers (``Categorical(7)``). The reward is equation 5 plus the optional switch cost
-    (:func:`agrl.core.reward.step_reward`, with its parts as entries, :data:`REWARD_PART_KEYS`).
+    Each step is one 3 s decision made of 150 integration steps of 20 ms. Actions are the seven maneuvers
+    (``Categorical(7)``), or with ``params.actions`` holding targets, target-holding actions
+    (``Categorical(num_actions)``, :func:`agrl.core.autopilot.target_action_table`) that an autopilot flies; the
+    held targets are then the state's ``held_targets``, and an instruction is an action that changes one. The
+    reward is equation 5 plus the optional switch cost (:func:`agrl.core.reward.step_reward`, with its parts as
+    entries, :data:`REWARD_PART_KEYS`).
 
     Scenario replay: ``env.reset(env.scenario(aircraft_state=..., destination_state=...,
     destination_speed=..., destination_turn_rate=...))`` starts the (masked) rows from
@@ -81,8 +91,18 @@ class GuidanceEnv(EnvBase):
         self._observation_size = observation_size(observation)  # one-line error on an unknown kind
         self._observation = observation_function(observation)
         require_max_decisions(self.params.max_decisions)  # the schema's check: a record may be built without it
+        actions = self.params.actions
+        self.holds_targets = actions.holds_targets
+        self.num_actions = self.params.num_actions
+        self.row_keys = (*STATE_KEYS, HELD_TARGETS_KEY) if self.holds_targets else STATE_KEYS
+        self.target_table = actions.target_table(self.params.simulation.airspace, self.params.simulation.limits)
+        if self.target_table is not None:
+            self.target_table = type(self.target_table)(*(field.to(self.device) for field in self.target_table))
+            self._observation = target_observation_function(observation)
+            self._observation_size = observation_size(observation, holds_targets=True)
         self.simulator = DecisionSimulator(
-            self.params.simulation, self.params.maneuvers.controls(self.device), compile=self.params.compile
+            self.params.simulation, self.params.maneuvers.controls(self.device), compile=self.params.compile,
+            autopilot=actions.autopilot(self.params.maneuvers),
         )
         self._destination_start = torch.tensor(self.params.destination.start, device=self.device)
         self._generator = torch.Generator(device=self.device)
@@ -99,8 +119,8 @@ class GuidanceEnv(EnvBase):
             destination_state=Unbounded((*batch, 4), device=self.device),
             destination_speed=Bounded(0.0, torch.inf, batch, device=self.device),
             destination_turn_rate=Unbounded(batch, device=self.device),
-            last_action=Categorical(NUM_ACTIONS, batch, device=self.device),
-            action_before_last=Categorical(NUM_ACTIONS, batch, device=self.device),
+            last_action=Categorical(self.num_actions, batch, device=self.device),
+            action_before_last=Categorical(self.num_actions, batch, device=self.device),
             step_count=Bounded(0, self.params.max_decisions, batch, dtype=torch.int64, device=self.device),
             # bookkeeping for statistics, not policy inputs:
             episode_return=Unbounded(batch, device=self.device),
@@ -110,7 +130,9 @@ class GuidanceEnv(EnvBase):
             shape=batch,
             device=self.device,
         )
-        self.action_spec = Categorical(NUM_ACTIONS, batch, device=self.device)
+        if self.holds_targets:
+            self.observation_spec[HELD_TARGETS_KEY] = Unbounded((*batch, 3), device=self.device)
+        self.action_spec = Categorical(self.num_actions, batch, device=self.device)
         self.reward_spec = Unbounded((*batch, 1), device=self.device)
         self.done_spec = Composite(
             done=Categorical(2, (*batch, 1), dtype=torch.bool, device=self.device),
@@ -139,9 +161,17 @@ class GuidanceEnv(EnvBase):
         """The policy input from the raw fields (one function for env and reuse step)."""
         simulation = self.params.simulation
         return self._observation(
-            state["aircraft_state"], state["destination_state"], state["last_action"],
+            state["aircraft_state"], state["destination_state"],
+            state[HELD_TARGETS_KEY] if self.holds_targets else state["last_action"],
             simulation.airspace, simulation.limits,
         )
+
+    def targets_after(self, state: TensorDictBase) -> tuple[torch.Tensor, torch.Tensor]:
+        """For an agent holding targets: the targets held after ``state``'s ``action`` ``(..., 3)``, and whether
+        that action is an instruction (it changed a target)."""
+        held = HeldTargets(*state[HELD_TARGETS_KEY].unbind(-1))
+        targets, changed = apply_target_action(held, state["action"].long(), self.target_table)
+        return torch.stack(tuple(targets), dim=-1), changed
 
     def scenario(
         self,
@@ -185,7 +215,7 @@ class GuidanceEnv(EnvBase):
         Used to resume training exactly: a collector built on this env then
         starts from the rows it was carrying when the checkpoint was written.
         """
-        keys = (*STATE_KEYS, "outcome", "done", "terminated")
+        keys = (*self.row_keys, "outcome", "done", "terminated")
         self._pending_state = state.select(*keys).to(self.device).clone()
 
     # ------------------------------------------------------------------ EnvBase API
@@ -248,6 +278,8 @@ class GuidanceEnv(EnvBase):
             batch_size=[count],
             device=self.device,
         )
+        if self.holds_targets:  # hold what the aircraft flies until the first instruction
+            state[HELD_TARGETS_KEY] = aircraft_state[..., _HELD_FIELDS].clone()
         state["observation"] = self.observe(state)
         return state
 
@@ -271,10 +303,16 @@ class GuidanceEnv(EnvBase):
         random redraw. The policy-reuse step calls it to re-simulate episodes exactly
         as the environment would. Works for any batch shape of ``state``.
         """
-        result = self.simulator(
-            state["aircraft_state"], state["destination_state"], destination_speed, destination_turn_rate,
-            state["action"].long(),
-        )
+        if self.holds_targets:
+            result = self.simulator.fly_targets(
+                state["aircraft_state"], state["destination_state"], destination_speed, destination_turn_rate,
+                self.targets_after(state)[0],
+            )
+        else:
+            result = self.simulator(
+                state["aircraft_state"], state["destination_state"], destination_speed, destination_turn_rate,
+                state["action"].long(),
+            )
         return self.complete_transition(state, result, destination_speed, destination_turn_rate)
 
     def complete_transition(
@@ -310,15 +348,20 @@ class GuidanceEnv(EnvBase):
             batch_size=state.batch_size,
             device=self.device,
         )
+        # An instruction is a decision that changes the maneuver being flown, or a held target.
+        if self.holds_targets:
+            next_state[HELD_TARGETS_KEY], instruction = self.targets_after(state)
+        else:
+            instruction = action != state["last_action"]
         # Equation 5 plus the switch cost, and its parts (logged; they sum to the reward).
         reward, parts = step_reward(
             outcome, state["aircraft_state"], state["destination_state"], state["last_action"],
             state["action_before_last"], action, result.aircraft_state, result.destination_state, self.params.reward,
+            instruction if self.holds_targets else None,
         )
         next_state.update(parts)
         next_state["reward"] = reward.unsqueeze(-1)
         next_state["episode_return"] = state["episode_return"] + reward
-        # An instruction is a decision that changes the maneuver being flown.
-        next_state["instruction_count"] = state["instruction_count"] + (action != state["last_action"]).long()
+        next_state["instruction_count"] = state["instruction_count"] + instruction.long()
         next_state["observation"] = self.observe(next_state)
         return next_state

@@ -41,7 +41,7 @@ from gymnasium import spaces
 from agrl.config import ConfigError, config_options, guidance_parameters, one_line
 from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.destinations import redraw_irregular_motion
-from agrl.core.observation import OBSERVATION_FEATURES, OBSERVATION_SIZE
+from agrl.core.observation import observation_features
 from agrl.core.parameters import MOTION_FIELDS, GuidanceParameters, MotionKind, tasks_taking
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import NUM_ACTIONS, SCENARIO_KEYS, GuidanceEnv
@@ -84,22 +84,24 @@ def gym_parameters(
     max_decisions: int | None = None,
     reward: str | None = None,
     compile: bool = False,
+    actions: str | None = None,
 ) -> GuidanceParameters:
     """The :class:`GuidanceParameters` of ``gymnasium.make("agrl/Guidance-v0", **kwargs)``'s keyword arguments: those
-    ``python -m agrl.train task=... reward=...`` would use.
-
-    Composed from ``conf/`` by :func:`agrl.config.guidance_parameters` (Hydra's compose API and the schemas'
-    checks), so every default is the YAML's own. Raises ``ValueError`` (one line) naming a bad value and what
-    is allowed: a keyword's type is checked here (a Python value is no override yet), its range by the schema.
+    ``python -m agrl.train task=... reward=... actions=...`` would use (``actions``: the vector env's only). Composed
+    from ``conf/`` by :func:`agrl.config.guidance_parameters` (Hydra's compose API and the schemas' checks), so every
+    default is the YAML's own. Raises ``ValueError`` (one line) naming a bad value and what is allowed: a keyword's type
+    is checked here (a Python value is no override yet), its range by the schema.
     """
-    tasks, rewards = config_options("task"), config_options("reward")
+    tasks, rewards, action_sets = config_options("task"), config_options("reward"), config_options("actions")
     if task not in tasks:
         _fail("task", task, f"one of {', '.join(tasks)}")
     if reward is not None and reward not in rewards:
         _fail("reward", reward, f"one of {', '.join(rewards)} (None: the training default, conf/config.yaml)")
     if not isinstance(compile, bool):
         _fail("compile", compile, "True or False")
-    overrides = [f"task={task}"]
+    if actions is not None and actions not in action_sets:
+        _fail("actions", actions, f"one of {', '.join(action_sets)} (None: the paper's maneuvers)")
+    overrides = [f"task={task}", *([f"actions={actions}"] if actions is not None else [])]
     if reward is not None:
         overrides.append(f"reward={reward}")
     given = {"speed": speed, "radius": radius, "turn_direction": turn_direction}
@@ -190,12 +192,9 @@ def scenario_reset(env: GuidanceEnv, options: Any):
 
 
 def observation_bounds(params: GuidanceParameters) -> tuple[np.ndarray, np.ndarray]:
-    """Finite bounds of :func:`agrl.core.observation.policy_observation` for ``params``.
-
-    Every feature is a sine/cosine, a clamped quantity or a position inside the
-    airspace mapped to [-1, 1]; an aircraft is at most one integration step
-    outside the airspace when its episode ends, hence the small margin.
-    """
+    """Finite bounds of the relative observation for ``params`` (of either action set): every feature is a
+    sine/cosine, a clamped quantity, a position inside the airspace mapped to [-1, 1] or a held target's distance
+    over its range; an aircraft is at most one integration step outside the airspace at its end, hence a margin."""
     simulation = params.simulation
     space = simulation.airspace
     width, depth, height = space.x_max - space.x_min, space.y_max - space.y_min, space.z_max - space.z_min
@@ -208,9 +207,10 @@ def observation_bounds(params: GuidanceParameters) -> tuple[np.ndarray, np.ndarr
         "along_track": (-reach, reach),
         "cross_track": (-reach, reach),
     }
-    low = np.empty(OBSERVATION_SIZE, dtype=np.float32)
-    high = np.empty(OBSERVATION_SIZE, dtype=np.float32)
-    for index, name in enumerate(OBSERVATION_FEATURES):
+    features = observation_features("relative", params.actions.holds_targets)
+    low = np.empty(len(features), dtype=np.float32)
+    high = np.empty(len(features), dtype=np.float32)
+    for index, name in enumerate(features):
         if name.startswith("last_action_"):
             low[index], high[index] = 0.0, 1.0
         else:

@@ -35,7 +35,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from agrl.core.termination import Outcome
-from agrl.envs.guidance import NUM_ACTIONS, SCENARIO_KEYS, GuidanceEnv
+from agrl.envs.guidance import HELD_TARGETS_KEY, SCENARIO_KEYS, GuidanceEnv
 from agrl.envs.gym import _fail, checked_seed, gym_parameters, observation_bounds, scenario_reset
 
 #: Entries of the TorchRL state that make a row's state (what a reset replaces).
@@ -74,6 +74,7 @@ class GuidanceVectorEnv(VectorEnv):
         reward: str | None = None,
         compile: bool | None = None,
         device: str = "cpu",
+        actions: str | None = None,
         render_mode: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
     ):
@@ -91,12 +92,13 @@ class GuidanceVectorEnv(VectorEnv):
             _fail("compile", compile, f"True, False or None (compiled from {COMPILED_FROM_ROWS} rows)")
         self.params = gym_parameters(
             task=task, speed=speed, radius=radius, turn_direction=turn_direction,
-            max_decisions=max_decisions, reward=reward, compile=compile,
+            max_decisions=max_decisions, reward=reward, compile=compile, actions=actions,
         )
         self.num_envs = int(num_envs)
         self.render_mode = render_mode
         self.env = GuidanceEnv(self.params, num_envs=self.num_envs, device=device, seed=None)
-        self.single_action_space = spaces.Discrete(NUM_ACTIONS)
+        self.single_action_space = spaces.Discrete(self.env.num_actions)
+        self._row_keys = (*_ROW_KEYS, HELD_TARGETS_KEY) if self.env.holds_targets else _ROW_KEYS
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         low, high = observation_bounds(self.params)
         self.single_observation_space = spaces.Box(low, high, dtype=np.float32)
@@ -116,6 +118,8 @@ class GuidanceVectorEnv(VectorEnv):
             "instruction_count": state["instruction_count"].cpu().numpy().copy(),
             "episode_return": state["episode_return"].cpu().numpy().copy(),
         }
+        if self.env.holds_targets:
+            info[HELD_TARGETS_KEY] = state[HELD_TARGETS_KEY].cpu().numpy().copy()
         for key in list(info):
             info[f"_{key}"] = self._all_rows
         return observation, info
@@ -129,7 +133,7 @@ class GuidanceVectorEnv(VectorEnv):
         action array among them)."""
         index = rows.nonzero().squeeze(-1)
         fresh = self.env.fresh_rows(index.numel())
-        for key in _ROW_KEYS:
+        for key in self._row_keys:
             state[key] = state[key].index_put((index,), fresh[key])
         return state
 
@@ -137,15 +141,16 @@ class GuidanceVectorEnv(VectorEnv):
         try:
             array = np.asarray(actions)
         except ValueError:  # ragged nesting
-            _fail("actions", actions, f"{self.num_envs} integer maneuver indices in [0, {NUM_ACTIONS - 1}]")
+            _fail("actions", actions, f"{self.num_envs} integer action indices in [0, {self.env.num_actions - 1}]")
         valid = (array.shape == (self.num_envs,) and np.issubdtype(array.dtype, np.integer)
-                 and bool(((array >= 0) & (array < NUM_ACTIONS)).all()))
+                 and bool(((array >= 0) & (array < self.env.num_actions)).all()))
         if not valid:
             shown = actions if array.size <= 8 else f"array of shape {array.shape}, dtype {array.dtype}"
             if array.size > 8 and array.shape == (self.num_envs,) and np.issubdtype(array.dtype, np.integer):
-                bad = int(np.flatnonzero((array < 0) | (array >= NUM_ACTIONS))[0])  # a long batch: its first bad row
+                # a long batch: its first bad row
+                bad = int(np.flatnonzero((array < 0) | (array >= self.env.num_actions))[0])
                 shown = f"{shown} with actions[{bad}]={array[bad]}"
-            _fail("actions", shown, f"{self.num_envs} integer maneuver indices in [0, {NUM_ACTIONS - 1}]")
+            _fail("actions", shown, f"{self.num_envs} integer action indices in [0, {self.env.num_actions - 1}]")
         return torch.as_tensor(array, dtype=torch.int64, device=self.env.device)
 
     # ------------------------------------------------------------------ gymnasium API
@@ -171,7 +176,7 @@ class GuidanceVectorEnv(VectorEnv):
                 reward = torch.zeros(self.num_envs, device=self.env.device)
                 terminated = torch.zeros(self.num_envs, dtype=torch.bool, device=self.env.device)
             else:
-                carrier = self._state.select(*_ROW_KEYS)
+                carrier = self._state.select(*self._row_keys)
                 carrier["action"] = action
                 following = self.env.step(carrier)["next"]
                 reward, terminated = following["reward"][..., 0], following["terminated"][..., 0]

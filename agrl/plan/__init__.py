@@ -34,6 +34,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import torch
+
 from agrl.config import (
     compose_checked,
     guidance_parameters,
@@ -42,8 +44,10 @@ from agrl.config import (
     override_key,
     saved_guidance_parameters,
 )
-from agrl.core.aircraft import MANEUVER_NAMES
+from agrl.core.aircraft import MANEUVER_NAMES, AircraftState
+from agrl.core.autopilot import HeldTargets, TargetKind, apply_target_action, target_instruction_text
 from agrl.core.parameters import GuidanceParameters, ManeuverLoadFactors, MotionKind
+from agrl.core.simulation import DecisionSimulator
 from agrl.core.termination import Outcome
 from agrl.reference import maneuver_rows, reference_decision
 
@@ -60,19 +64,20 @@ class PlanError(ValueError):
 
 @dataclass(frozen=True)
 class Instruction:
-    """One instruction: when it is given (s from the start), the maneuver, and where the aircraft is then (m)."""
+    """One instruction: when it is given (s from the start), the action, and where the aircraft is then (m)."""
 
     time_s: float
-    maneuver: int
-    name: str  # MANEUVER_NAMES' entry
-    text: str  # what a controller says: "left turn (2 g)"
+    maneuver: int  # the action's index: a maneuver, or for an agent holding targets a row of its target table
+    name: str  # MANEUVER_NAMES' entry; for a target: heading, altitude, speed or hold
+    text: str  # what a controller says: "left turn (2 g)", "turn left heading 270", "climb to 3 000 m"
     position: tuple[float, float, float]
 
 
 @dataclass(frozen=True)
 class Trajectory:
     """The flight at each decision: ``time_s``, aircraft (x, y, z, v, theta, psi, phi) and destination (x, y, z,
-    psi) at the start and after each decision (decisions + 1 rows), and the maneuver flown in each decision."""
+    psi) at the start and after each decision (decisions + 1 rows), and the action taken at each decision (the
+    maneuver flown, or the target-holding action)."""
 
     time_s: list[float]
     aircraft: list[tuple[float, ...]]
@@ -134,7 +139,7 @@ def task_parameters(guide, overrides: Sequence[str] = ()) -> GuidanceParameters:
         return saved_guidance_parameters(saved, task, compile=False)
     params = guidance_parameters(*overrides)
     simulation = dataclasses.replace(params.simulation, airspace=guide.airspace, limits=guide.limits)
-    return dataclasses.replace(params, simulation=simulation)
+    return dataclasses.replace(params, simulation=simulation, actions=guide.actions)
 
 
 def state_numbers(values, fields: tuple[str, ...], name: str) -> tuple[float, ...]:
@@ -192,6 +197,8 @@ def plan(guide, params: GuidanceParameters, aircraft_state, destination_state=No
     aircraft, destination = checked_states(params, aircraft_state, destination_state)
     speed, turn_rate = (float(value[0]) for value in params.destination.initial_motion(1, None, "cpu"))
     simulation, loads = params.simulation, params.maneuvers
+    if getattr(guide, "holds_targets", False):  # any object with instruct() is a guide; maneuvers unless it says
+        return _plan_targets(guide, params, aircraft, destination, speed, turn_rate)
     times, aircraft_path, destination_path, maneuvers = [0.0], [aircraft], [destination], []
     instructions, flight_time, outcome = [], 0.0, Outcome.BUDGET_EXHAUSTED
     for decision in range(params.max_decisions):
@@ -211,3 +218,42 @@ def plan(guide, params: GuidanceParameters, aircraft_state, destination_state=No
             break
     trajectory = Trajectory(times, aircraft_path, destination_path, maneuvers)
     return Plan(instructions, trajectory, outcome.name.lower(), flight_time, len(maneuvers))
+
+
+def _plan_targets(guide, params: GuidanceParameters, aircraft: tuple, destination: tuple, speed: float,
+                  turn_rate: float) -> Plan:
+    """:func:`plan` for an agent holding targets: the aircraft starts holding what it flies; each decision the
+    guide picks an action, the autopilot flies the targets it leaves (:meth:`DecisionSimulator.fly_targets`, one
+    row, eager), and an action that changes a target is an instruction."""
+    simulation = params.simulation
+    simulator = DecisionSimulator(simulation, params.maneuvers.controls(), autopilot=params.actions.autopilot(
+        params.maneuvers))
+    table = params.actions.target_table(simulation.airspace, simulation.limits)
+    aircraft_row = torch.tensor([aircraft], dtype=torch.float32)
+    destination_row = torch.tensor([destination], dtype=torch.float32)
+    held = HeldTargets.of(AircraftState.from_tensor(aircraft_row))
+    motion = torch.tensor([speed]), torch.tensor([turn_rate])
+    times, aircraft_path, destination_path, actions = [0.0], [aircraft], [destination], []
+    instructions, flight_time, outcome = [], 0.0, Outcome.BUDGET_EXHAUSTED
+    for decision in range(params.max_decisions):
+        action = guide.instruct(aircraft_path[-1], destination_path[-1], [float(value) for value in held])
+        held, changed = apply_target_action(held, torch.tensor([action]), table)
+        if bool(changed):
+            kind, value = TargetKind(int(table.kind[action])), float(table.value[action])
+            state = AircraftState.from_tensor(aircraft_row[0])
+            instructions.append(Instruction(decision * simulation.decision_period, action, kind.name.lower(),
+                                            target_instruction_text(kind, value, state),
+                                            tuple(aircraft_path[-1][:3])))
+        result = simulator.fly_targets(aircraft_row, destination_row, *motion, torch.stack(tuple(held), dim=-1))
+        aircraft_row, destination_row = result.aircraft_state, result.destination_state
+        # Whole decisions: the batched simulator does not say at which step a flight ended.
+        flight_time += simulation.decision_period
+        times.append(flight_time)
+        aircraft_path.append(tuple(aircraft_row[0].tolist()))
+        destination_path.append(tuple(destination_row[0].tolist()))
+        actions.append(action)
+        if int(result.outcome[0]) != Outcome.RUNNING:
+            outcome = Outcome(int(result.outcome[0]))
+            break
+    trajectory = Trajectory(times, aircraft_path, destination_path, actions)
+    return Plan(instructions, trajectory, outcome.name.lower(), flight_time, len(actions))

@@ -19,7 +19,7 @@ from pathlib import Path
 import torch
 from tensordict import TensorDict
 
-from agrl.config import ConfigError, saved_agent_config, saved_guidance_parameters
+from agrl.config import LEGACY_ACTIONS, ConfigError, saved_agent_config, saved_guidance_parameters
 from agrl.core.observation import observation_function
 from agrl.envs.guidance import NUM_ACTIONS, GuidanceEnv
 from agrl.rl.checkpoint import load_checkpoint, load_module_state, resolve_checkpoint_path, save_checkpoint
@@ -54,6 +54,10 @@ def _load_teachers(teachers: Sequence[str | Path]):
     actors, critics = [], []
     for path, payload in zip(paths, payloads, strict=True):
         agent = saved_agent_config(payload["config"])
+        actions = payload["config"].get("actions", LEGACY_ACTIONS)["name"]
+        if actions != LEGACY_ACTIONS["name"]:
+            raise ConfigError(f"{path}: actions={actions} is not allowed as a teacher: distillation takes agents of "
+                              "the paper's maneuvers")
         for section in ("task", "simulation"):
             if payload["config"].get(section) != saved.get(section):
                 raise ConfigError(f"{path}: its {section} differs from {paths[0]}'s; an ensemble's teachers must "

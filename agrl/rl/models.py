@@ -1,4 +1,5 @@
-"""Actor (7-way categorical policy) and critic networks as TorchRL modules."""
+"""Actor (a categorical policy over the agent's actions: the 7 maneuvers or the target-holding actions) and critic
+networks as TorchRL modules."""
 
 from __future__ import annotations
 
@@ -16,15 +17,26 @@ from agrl.envs.guidance import NUM_ACTIONS
 ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 
 
+def make_agent(agent, params, device: torch.device | str = "cpu") -> tuple[ProbabilisticActor, ValueOperator]:
+    """The actor and critic of ``agent`` (an ``agent`` config section: sizes, activation, observation) for the task
+    ``params`` (a :class:`agrl.core.parameters.GuidanceParameters`: its action set sets the output and the
+    input's last features)."""
+    holds_targets, num_actions = params.actions.holds_targets, params.num_actions
+    return (make_actor(agent.actor_hidden, agent.activation, device, agent.observation, num_actions, holds_targets),
+            make_critic(agent.critic_hidden, agent.activation, device, agent.observation, holds_targets))
+
+
 def make_actor(hidden: list[int], activation: str, device: torch.device | str = "cpu",
-               observation: str = "relative") -> ProbabilisticActor:
+               observation: str = "relative", num_actions: int = NUM_ACTIONS,
+               holds_targets: bool = False) -> ProbabilisticActor:
     """``observation -> logits -> action`` with ``action_log_prob``; deterministic mode is the argmax.
-    ``observation`` (relative or absolute, ``agent.observation``) sets the input width."""
+    ``observation`` (relative or absolute, ``agent.observation``) and ``holds_targets`` (an agent of
+    ``actions=targets``) set the input width, ``num_actions`` the output's (the 7 maneuvers by default)."""
     network = MLP(
-        in_features=observation_size(observation), out_features=NUM_ACTIONS, num_cells=list(hidden),
+        in_features=observation_size(observation, holds_targets), out_features=num_actions, num_cells=list(hidden),
         activation_class=ACTIVATIONS[activation], device=device,
     )
-    # Small final layer: the initial policy is close to uniform over the 7 maneuvers.
+    # Small final layer: the initial policy is close to uniform over the actions.
     with torch.no_grad():
         network[-1].weight.mul_(0.01)
         network[-1].bias.zero_()
@@ -44,9 +56,9 @@ def _categorical_actor(logits: nn.Module) -> ProbabilisticActor:
 
 
 def make_critic(hidden: list[int], activation: str, device: torch.device | str = "cpu",
-                observation: str = "relative") -> ValueOperator:
+                observation: str = "relative", holds_targets: bool = False) -> ValueOperator:
     network = MLP(
-        in_features=observation_size(observation), out_features=1, num_cells=list(hidden),
+        in_features=observation_size(observation, holds_targets), out_features=1, num_cells=list(hidden),
         activation_class=ACTIVATIONS[activation], device=device,
     )
     return ValueOperator(network, in_keys=["observation"])

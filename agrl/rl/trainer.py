@@ -36,7 +36,7 @@ from agrl.rl.checkpoint import CheckpointError, load_module_state, save_checkpoi
 from agrl.rl.curriculum import SharedScaleGuidanceEnv, promoted_scale, shared_scale, start_distribution
 from agrl.rl.evaluation import instruction_latency_ms, run_episodes, search_objective, summarise, write_evaluation
 from agrl.rl.metrics import MetricsLog, episode_statistics, progress_line
-from agrl.rl.models import make_actor, make_critic
+from agrl.rl.models import make_agent
 from agrl.rl.ppo import (
     CompiledLoss,
     TrainingDiverged,
@@ -85,10 +85,9 @@ class Trainer:
             torch.set_num_threads(cfg.threads)
         seed_everything(cfg.seed)
 
-        self.params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation)
+        self.params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, actions=cfg.actions)
         self.env, self.eval_env = self._make_envs()
-        self.actor = make_actor(cfg.agent.actor_hidden, cfg.agent.activation, self.device, cfg.agent.observation)
-        self.critic = make_critic(cfg.agent.critic_hidden, cfg.agent.activation, self.device, cfg.agent.observation)
+        self.actor, self.critic = make_agent(cfg.agent, self.params, self.device)
         self.method = method_class(cfg.method.name)(cfg.method)  # an agrl.rl.methods.Method
         self.method.start(self)
         self._make_ppo()

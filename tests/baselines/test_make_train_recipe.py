@@ -16,6 +16,7 @@ import torch
 
 from agrl.baselines import BASELINE_FILE, SHIPPED_AGENTS
 from agrl.config import upgraded_config
+from agrl.core.parameters import ACTION_FIELDS
 from agrl.rl.metrics import flatten_config
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -28,7 +29,9 @@ NOT_THE_RECIPE = {"progress", "method.baseline", "search.success", "search.max_i
 #: the key was trained with that value. Any other value of such an option is still a difference.
 #: ``eval.confirm_episodes``: stage 1's confirmation holds where its periodic evaluation stopped it (``make train``
 #: gave the shipped files bit for bit with it), and stage 2 never stops on a target.
-ADDED_SINCE = {"ppo.target_kl": 0.0, "eval.confirm_episodes": 1000}
+#: ``actions``: the paper's maneuvers, the only actions there were (its target-holding fields unset).
+ADDED_SINCE = {"ppo.target_kl": 0.0, "eval.confirm_episodes": 1000, "actions.name": "maneuvers",
+               **{f"actions.{name}": "None" for name in ACTION_FIELDS["targets"]}}
 
 
 def _recipe(config: dict) -> dict:
@@ -65,6 +68,23 @@ def test_stage_one_is_the_defaults(compose_train):
 def test_stage_two_is_the_finetune_experiment_with_the_makefiles_arguments(compose_train):
     config = compose_train("+experiment=switch_finetune", "method.baseline=stage1", *_makefile_finetune_args())
     assert _differences(_recipe(dataclasses.asdict(config)), _saved(BASELINE_FILE)) == {}
+
+
+def _makefile_recipe(target: str) -> list[str]:
+    """The commands of a Makefile target, continuation lines joined."""
+    text = (ROOT / "Makefile").read_text().replace("\\\n", " ")
+    match = re.search(rf"^{target}:.*\n((?:\t.*\n)+)", text, flags=re.MULTILINE)
+    assert match, f"the Makefile has no {target} target"
+    return [line.strip() for line in match.group(1).splitlines()]
+
+
+def test_make_train_targets_composes_the_shipped_target_agents_recipe(compose_train):
+    stage1, stage2 = _makefile_recipe("train-targets")
+    for overrides in (["actions=targets"], ["actions=targets", "+experiment=switch_finetune"]):
+        command = stage1 if len(overrides) == 1 else stage2
+        assert all(override in command.split() for override in overrides), command
+    config = compose_train("actions=targets", "+experiment=switch_finetune", "method.baseline=stage1")
+    assert _differences(_recipe(dataclasses.asdict(config)), _saved(SHIPPED_AGENTS["baseline-targets"].file)) == {}
 
 
 def test_the_shipped_file_was_fine_tuned_from_a_stage_one_run():

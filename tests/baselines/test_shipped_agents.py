@@ -20,10 +20,12 @@ from agrl.rl.checkpoint import CheckpointError, load_checkpoint, resolve_checkpo
 from agrl.rl.evaluation import run_episodes, summarise
 
 NAMES = list(SHIPPED_AGENTS)
-ALLOWED = "baseline, baseline-stage1, baseline-both-terms, baseline-absolute"
+ALLOWED = "baseline, baseline-stage1, baseline-both-terms, baseline-targets, baseline-absolute"
 #: The input each agent's network reads.
 OBSERVATIONS = {"baseline": "relative", "baseline-stage1": "relative", "baseline-both-terms": "relative",
-                "baseline-absolute": "absolute"}
+                "baseline-targets": "relative", "baseline-absolute": "absolute"}
+#: The actions each agent gives (conf/actions).
+ACTIONS = {name: "targets" if name == "baseline-targets" else "maneuvers" for name in OBSERVATIONS}
 
 
 def test_the_names_are_the_documented_ones():
@@ -64,8 +66,23 @@ def test_each_evaluation_record_is_a_consistent_summary(name):
 @pytest.mark.parametrize("name", NAMES)
 def test_each_name_is_accepted_before_hydra_runs(name):
     observation = OBSERVATIONS[name]
-    check_overrides(["method=pretrained", f"method.baseline={name}", f"agent.observation={observation}"], "config")
+    check_overrides(["method=pretrained", f"method.baseline={name}", f"agent.observation={observation}",
+                     f"actions={ACTIONS[name]}"], "config")
     check_overrides([f"checkpoint={name}"], "evaluate")
+
+
+@pytest.mark.parametrize(("baseline", "actions"), [("baseline-targets", "maneuvers"), ("baseline", "targets")])
+def test_starting_from_an_agent_of_the_other_action_set_is_one_line(baseline, actions):
+    """What python -m agrl.train checks before Hydra runs (agrl.train.check_inputs)."""
+    from agrl.config import compose_checked, load_config
+    from agrl.train import check_inputs
+
+    trained = ACTIONS[baseline]
+    config = load_config(compose_checked("method=pretrained", f"method.baseline={baseline}", f"actions={actions}"))
+    with pytest.raises(CheckpointError) as error:
+        check_inputs(config)
+    assert str(error.value) == (f"{SHIPPED_AGENTS[baseline].file}: actions={actions} is not allowed with this "
+                                f"baseline: it was trained with actions={trained}; train Z with the same")
 
 
 def test_an_unknown_name_is_one_line_listing_the_names():

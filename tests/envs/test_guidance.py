@@ -288,3 +288,96 @@ def test_outcomes_are_terminal_consistently(make_params):
     done = td["next", "done"].squeeze(-1)
     assert torch.equal(done, outcome != Outcome.RUNNING)
     assert torch.equal(done, td["next", "terminated"].squeeze(-1))
+
+
+# ---------------------------------------------------------------------------- actions=targets
+@pytest.fixture(scope="module")
+def targets_params(compose_parameters):
+    return compose_parameters("task=uniform", "speed=20", "actions=targets")
+
+
+def _action(table, kind, value) -> int:
+    """The index of the table's action setting ``kind`` to ``value``."""
+    from agrl.core.autopilot import TargetKind
+
+    matches = ((table.kind == TargetKind[kind.upper()]) & torch.isclose(table.value, torch.tensor(float(value))))
+    return int(matches.nonzero()[0, 0])
+
+
+@pytest.mark.parametrize("observation", ["relative", "absolute"])
+def test_a_targets_env_has_one_action_per_target_and_starts_holding_what_it_flies(targets_params, observation):
+    from agrl.core.observation import held_target_features, observation_features
+
+    env = GuidanceEnv(targets_params, num_envs=4, seed=3, observation=observation)
+    check_env_specs(env)
+    table = targets_params.actions.target_table(targets_params.simulation.airspace, targets_params.simulation.limits)
+    assert env.action_spec.space.n == len(table) == targets_params.num_actions == 1 + 12 + 10 + 3
+    td = env.reset()
+    aircraft = td["aircraft_state"]
+    assert torch.equal(td["held_targets"], aircraft[:, [5, 2, 3]])  # heading, altitude, speed
+    names = observation_features(observation, holds_targets=True)
+    assert td["observation"].shape == (4, len(names)) and "last_action_left_turn" not in names
+    simulation = targets_params.simulation
+    expected = held_target_features(aircraft, td["held_targets"], simulation.airspace, simulation.limits)
+    assert torch.equal(td["observation"][:, -4:], expected)
+    assert torch.equal(expected, torch.tensor([[0.0, 1.0, 0.0, 0.0]] * 4))  # every target reached at the start
+
+
+def test_a_targets_step_counts_and_prices_only_actions_that_change_a_target(targets_params):
+    params = dataclasses.replace(targets_params, reward=dataclasses.replace(targets_params.reward, switch_cost=0.25))
+    env = GuidanceEnv(params, num_envs=4, seed=0)
+    table = env.target_table
+    start = torch.tensor([[-6000.0, 3000.0, 2500.0, 200.0, 0.0, 0.0, 0.0]] * 4)
+    td = env.reset(env.scenario(aircraft_state=start))
+    # hold; heading 0 (already held); climb to 3 500 m; slow to the minimum speed
+    td["action"] = torch.tensor([0, _action(table, "heading", 0.0), _action(table, "altitude", 3500.0),
+                                 _action(table, "speed", params.simulation.limits.min_speed)])
+    after = env.step(td)["next"]
+    assert after["instruction_count"].tolist() == [0, 0, 1, 1]
+    assert after["reward_switch_cost"].tolist() == [0.0, 0.0, -0.25, -0.25]
+    held = after["held_targets"]
+    assert held[:2].tolist() == [[0.0, 2500.0, 200.0]] * 2
+    assert held[2].tolist() == [0.0, 3500.0, 200.0] and held[3].tolist() == [0.0, 2500.0, 100.0]
+    # The climbing row climbs, the slowing row slows; the others fly on level at 200 m/s.
+    assert after["aircraft_state"][2, 2] > 2500.0 and after["aircraft_state"][3, 3] < 200.0
+    assert torch.allclose(after["aircraft_state"][:2, 2:4], torch.tensor([[2500.0, 200.0]] * 2))
+    # The same clearance again is no instruction; a new one is.
+    after["action"] = torch.tensor([_action(table, "heading", math.pi / 2), 0, _action(table, "altitude", 3500.0),
+                                    _action(table, "altitude", 500.0)])
+    again = env.step(after)["next"]
+    assert again["instruction_count"].tolist() == [1, 0, 1, 2]
+
+
+def test_a_targets_decision_is_the_autopilot_flying_the_held_targets(targets_params):
+    """The env's transition against the core's one-step law applied 150 times (agrl.core.autopilot)."""
+    from agrl.core.aircraft import AircraftState
+    from agrl.core.autopilot import HeldTargets, autopilot_step
+
+    env = GuidanceEnv(targets_params, num_envs=3, seed=1)
+    td = env.reset()
+    td["action"] = torch.tensor([_action(env.target_table, "heading", -math.pi / 2), _action(env.target_table,
+                                 "altitude", 100.0), _action(env.target_table, "speed", 250.0)])
+    after = env.step(td)["next"]
+    simulation = targets_params.simulation
+    autopilot = targets_params.actions.autopilot(targets_params.maneuvers)
+    aircraft = AircraftState.from_tensor(td["aircraft_state"])
+    targets = HeldTargets(*after["held_targets"].unbind(-1))
+    for _ in range(simulation.substeps):
+        aircraft = autopilot_step(aircraft, targets, simulation.integration_step, simulation.limits, autopilot)
+    expected = aircraft.to_tensor()
+    got = after["aircraft_state"]
+    assert torch.allclose(got[:, :5], expected[:, :5], rtol=1e-5, atol=1e-3)
+    assert torch.allclose(torch.remainder(got[:, 5] - expected[:, 5] + math.pi, 2 * math.pi) - math.pi,
+                          torch.zeros(3), atol=1e-4)
+
+
+def test_restore_on_next_reset_carries_the_held_targets(targets_params):
+    env = GuidanceEnv(targets_params, num_envs=2, seed=0)
+    td = env.reset()
+    td["action"] = torch.tensor([5, 20])
+    after = env.step(td)["next"]
+    other = GuidanceEnv(targets_params, num_envs=2, seed=9)
+    other.restore_on_next_reset(after)
+    restored = other.reset()
+    assert torch.equal(restored["held_targets"], after["held_targets"])
+    assert torch.equal(restored["observation"], after["observation"])

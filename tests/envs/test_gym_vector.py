@@ -140,7 +140,7 @@ def test_bad_calls_and_arguments():
         envs.step(np.array([0, 0]))
     envs.reset(seed=0)
     for bad in (np.array([0, 7]), np.array([0]), np.array([0.5, 1.0]), [[0, 1]]):
-        with pytest.raises(ValueError, match="actions=.* is not allowed: 2 integer maneuver indices in"):
+        with pytest.raises(ValueError, match="actions=.* is not allowed: 2 integer action indices in"):
             envs.step(bad)
     envs.step([3, 4])  # plain lists of ints are fine
     many = _make_vec(16, task="fixed")
@@ -189,3 +189,37 @@ def test_same_step_autoreset_returns_the_reset_observation_and_the_final_one_in_
     assert not np.allclose(observations[0], final_observation, atol=1e-2)
     with pytest.raises(ValueError, match="autoreset_mode='Disabled' is not allowed: one of NextStep, SameStep"):
         _make_vec(2, autoreset_mode="Disabled")
+
+
+def test_a_vector_env_of_target_holding_actions_flies_the_training_envs_rows():
+    """``actions="targets"``: 26 actions, the held targets in ``info``, observations within the space, and each
+    step the TorchRL env's own (GuidanceEnv with the same task, seed and actions)."""
+    import torch
+
+    from agrl.config import guidance_parameters
+    from agrl.envs import GuidanceEnv
+
+    env = _make_vec(4, actions="targets", task="uniform", speed=50.0, compile=False)
+    assert env.single_action_space.n == 26
+    observations, info = env.reset(seed=5)
+    assert env.single_observation_space.shape == (20,) and env.observation_space.contains(observations)
+    np.testing.assert_array_equal(info["held_targets"], info["aircraft_state"][:, [5, 2, 3]])
+    reference = GuidanceEnv(guidance_parameters("actions=targets", "task=uniform", "speed=50"), num_envs=4, seed=5)
+    state = reference.reset()
+    rng = np.random.default_rng(0)
+    for _ in range(6):
+        actions = rng.integers(0, 26, 4)
+        observations, rewards, terminated, _, info = env.step(actions)
+        state["action"] = torch.as_tensor(actions)
+        state = reference.step(state)["next"]
+        np.testing.assert_array_equal(observations, state["observation"].numpy())
+        np.testing.assert_array_equal(info["held_targets"], state["held_targets"].numpy())
+        np.testing.assert_array_equal(info["instruction_count"], state["instruction_count"].numpy())
+        assert env.observation_space.contains(observations)
+        if terminated.any():
+            break
+    with pytest.raises(ValueError, match=r"actions=\[26, 0, 0, 0\] is not allowed: 4 integer action indices in "
+                                         r"\[0, 25\]"):
+        env.step([26, 0, 0, 0])
+    with pytest.raises(ValueError, match="actions='orders' is not allowed: one of maneuvers, targets"):
+        _make_vec(2, actions="orders")

@@ -172,3 +172,14 @@ def test_a_start_of_another_observation_is_refused_in_one_line(student, tmp_path
         distill("baseline", tmp_path / "out.pt", observation="relative", compile=False, init=absolute_student,
                 log=lambda line: None)
     assert "\n" not in str(error.value)
+
+
+def test_an_agent_holding_targets_is_refused_as_a_teacher(tmp_path):
+    from agrl.baselines import SHIPPED_AGENTS
+    from agrl.config import ConfigError
+
+    with pytest.raises(ConfigError) as error:
+        distill("baseline-targets", tmp_path / "student.pt")
+    assert str(error.value) == (f"{SHIPPED_AGENTS['baseline-targets'].file}: actions=targets is not allowed as a "
+                                "teacher: distillation takes agents of the paper's maneuvers")
+    assert not (tmp_path / "student.pt").exists()

@@ -7,10 +7,12 @@ from typing import TYPE_CHECKING, Any
 import torch
 from torchrl.modules import ProbabilisticActor, ValueOperator
 
+from agrl.config import LEGACY_ACTIONS, saved_guidance_parameters, to_guidance_parameters
 from agrl.core.observation import LEGACY_OBSERVATION
+from agrl.envs.guidance import NUM_ACTIONS
 from agrl.rl.checkpoint import CheckpointError, load_checkpoint, load_module_state, resolve_checkpoint_path
 from agrl.rl.methods.base import Method
-from agrl.rl.models import make_actor, make_critic
+from agrl.rl.models import make_actor, make_agent
 
 if TYPE_CHECKING:
     from agrl.rl.trainer import Trainer
@@ -27,8 +29,15 @@ def load_baseline(cfg: Any, device: torch.device | str, actor: ProbabilisticActo
         payload = load_checkpoint(path, required=("actor", "critic"))
     except CheckpointError as error:
         raise CheckpointError(f"method.baseline: {error}") from None
-    baseline_agent = payload.get("config", {}).get("agent", {})
+    saved = payload.get("config", {})
+    baseline_agent = saved.get("agent", {})
     observation = baseline_agent.get("observation", LEGACY_OBSERVATION)
+    actions = saved.get("actions", LEGACY_ACTIONS)["name"]
+    if actions != cfg.actions.name:
+        raise CheckpointError(f"{path}: actions={cfg.actions.name} is not allowed with this baseline: it was trained "
+                              f"with actions={actions}; train Z with the same")
+    # A baseline holding targets counts its actions from its own airspace and limits (its saved config).
+    params = saved_guidance_parameters(saved) if actions != LEGACY_ACTIONS["name"] else None
     if start_from_it:
         if observation != cfg.agent.observation:
             raise CheckpointError(
@@ -37,8 +46,10 @@ def load_baseline(cfg: Any, device: torch.device | str, actor: ProbabilisticActo
             )
         load_module_state(actor, payload["actor"], path, "actor")
         load_module_state(critic, payload["critic"], path, "critic")
+    holds_targets = params is not None and params.actions.holds_targets
     baseline = make_actor(baseline_agent.get("actor_hidden", cfg.agent.actor_hidden),
-                          baseline_agent.get("activation", cfg.agent.activation), device, observation)
+                          baseline_agent.get("activation", cfg.agent.activation), device, observation,
+                          params.num_actions if params is not None else NUM_ACTIONS, holds_targets)
     load_module_state(baseline, payload["actor"], path, "baseline actor")
     return baseline.eval().requires_grad_(False), path, observation
 
@@ -55,9 +66,9 @@ class FromBaseline(Method):
 
     @classmethod
     def check_inputs(cls, train_config: Any) -> None:
-        agent = train_config.agent
-        load_baseline(train_config, "cpu", make_actor(agent.actor_hidden, agent.activation, "cpu", agent.observation),
-                      make_critic(agent.critic_hidden, agent.activation, "cpu", agent.observation),
+        params = to_guidance_parameters(train_config.task, train_config.reward, train_config.simulation,
+                                        actions=train_config.actions)
+        load_baseline(train_config, "cpu", *make_agent(train_config.agent, params, "cpu"),
                       cls(train_config.method).starts_from_baseline())
 
     def start(self, trainer: Trainer) -> None:

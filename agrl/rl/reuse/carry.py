@@ -17,7 +17,7 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 
 from agrl.core.termination import Outcome
-from agrl.envs.guidance import STATE_KEYS
+from agrl.envs.guidance import HELD_TARGETS_KEY, STATE_KEYS
 
 #: The collector's episode id of each row (one id per episode and env, ascending within an env).
 TRAJECTORY_KEY = ("collector", "traj_ids")
@@ -70,7 +70,7 @@ class EpisodeCarrier:
         if batch.numel() % envs:
             raise ValueError(f"PolicyReuseTransform expects {envs} envs x steps rows, got {batch.numel()} rows")
         steps = batch.numel() // envs
-        batch = batch.select(*CARRY_KEYS)
+        batch = batch.select(*CARRY_KEYS, HELD_TARGETS_KEY, strict=False)  # held targets: an agent holding them
         first = torch.arange(envs, device=device) * steps
         lengths = torch.zeros(envs, dtype=torch.long, device=device)
         if self.rows is not None and self.lengths.numel() == envs:

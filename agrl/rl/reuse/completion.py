@@ -15,6 +15,7 @@ import torch
 from tensordict import TensorDict, TensorDictBase
 from torchrl.modules import ProbabilisticActor
 
+from agrl.core.autopilot import HeldTargets, apply_target_action
 from agrl.core.simulation import DecisionResult
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import GuidanceEnv
@@ -87,7 +88,12 @@ def relabelled_trajectories(
     actions = torch.cat([start_rows["action_before_last"].long()[:, None],
                          with_start(start_rows["last_action"].long(), record.action)], 1)
     last_action, action = actions[row, take + 1], actions[row, take + 2]
-    changes = (action != last_action).long()
+    held = None
+    if env.holds_targets:  # the targets held before each step, and which steps changed one (instructions)
+        held, changes = _held_targets(start_rows["held_targets"], actions[:, 2:], env.target_table)
+        held, changes = held[row, take], changes[row, take].long()
+    else:
+        changes = (action != last_action).long()
     instructions = start_rows["instruction_count"][:, None] + torch.cumsum(changes, 1) - changes
     state = TensorDict(
         {
@@ -104,6 +110,8 @@ def relabelled_trajectories(
         },
         batch_size=[episodes, length], device=device,
     )
+    if held is not None:
+        state["held_targets"] = held
     outcome = torch.where(take == (arrival - 1)[:, None], int(Outcome.SUCCESS), int(Outcome.RUNNING))
     result = DecisionResult(aircraft[row, take + 1], destination[row, take + 1], outcome)
     next_state = env.complete_transition(state, result, speed[row, take + 1], turn_rate[row, take + 1])
@@ -123,6 +131,17 @@ def relabelled_trajectories(
     trajectories["next", "done"] = trajectories["next", "done"] | ~valid[..., None]
     trajectories["next", "terminated"] = trajectories["next", "terminated"] | ~valid[..., None]
     return trajectories, valid
+
+
+def _held_targets(start: torch.Tensor, actions: torch.Tensor, table) -> tuple[torch.Tensor, torch.Tensor]:
+    """The targets held before each step ``(E, T, 3)`` from those at S_0 ``(E, 3)`` and the actions ``(E, T)``,
+    and whether each action changed one ``(E, T)`` (:func:`agrl.core.autopilot.apply_target_action`)."""
+    held, before, changed = HeldTargets(*start.unbind(-1)), [], []
+    for step in range(actions.shape[1]):
+        before.append(torch.stack(tuple(held), dim=-1))
+        held, change = apply_target_action(held, actions[:, step], table)
+        changed.append(change)
+    return torch.stack(before, 1), torch.stack(changed, 1)
 
 
 def relabelled_rows(

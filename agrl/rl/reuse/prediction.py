@@ -16,7 +16,7 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.envs import ExplorationType, set_exploration_type
 
 from agrl.core.destinations import DestinationState, move_destination
-from agrl.core.observation import in_destination_frame, observation_function
+from agrl.core.observation import in_destination_frame, observation_function, target_observation_function
 from agrl.core.parameters import GuidanceParameters
 from agrl.core.simulation import SimulationParameters
 from agrl.rl.models import logits_network
@@ -71,7 +71,9 @@ class BaselinePolicy:
 
     ``actor``: B's TorchRL actor (``observation -> action``); ``simulation``: the environment's simulation
     parameters (airspace and limits normalise the observation); ``observation``: B's own input, ``relative`` or
-    ``absolute`` (its checkpoint's ``agent.observation``, which may differ from the trained agent's).
+    ``absolute`` (its checkpoint's ``agent.observation``, which may differ from the trained agent's);
+    ``holds_targets``: B flies held targets (``actions=targets``), so what it reads beside the state is the targets
+    it holds ``(..., 3)`` instead of the maneuver flown.
 
     ``logits`` is B's ``observation -> logits`` network when the actor is built like
     :func:`agrl.rl.models.make_actor` (then it is called directly, without TensorDict and distribution wrappers,
@@ -80,11 +82,13 @@ class BaselinePolicy:
     """
 
     def __init__(self, actor: torch.nn.Module, simulation: SimulationParameters, observation: str = "relative", *,
-                 direct: bool = True):
+                 direct: bool = True, holds_targets: bool = False):
         self.actor = actor
         self.simulation = simulation
         self.observation_kind = observation
-        self.observation_function = observation_function(observation)
+        self.holds_targets = holds_targets
+        self.observation_function = (target_observation_function(observation) if holds_targets
+                                     else observation_function(observation))
         self.logits = logits_network(actor) if direct else None
 
     def observation(
@@ -92,21 +96,27 @@ class BaselinePolicy:
     ) -> torch.Tensor:
         """B's input ``(..., features)`` with the destination fields replaced by the prediction (equation 20).
 
-        ``aircraft_state (..., 7)``, ``predicted_destination (..., 4)``, ``last_action (...)``. The relative
-        observation describes the aircraft from the destination it is given, so the prediction goes in as it is.
-        With the absolute one (equation 4), B has only seen the fixed destination at the origin: the state is
-        moved into the predicted destination's frame first (section 5.1, :func:`in_destination_frame`).
+        ``aircraft_state (..., 7)``, ``predicted_destination (..., 4)``, ``last_action (...)`` (for B holding
+        targets: the held targets ``(..., 3)``). The relative observation describes the aircraft from the destination
+        it is given, so the prediction goes in as it is. With the absolute one (equation 4), B has only seen the
+        fixed destination at the origin: the state is moved into the predicted destination's frame first (section
+        5.1, :func:`in_destination_frame`), held heading and altitude targets with it.
         """
         simulation = self.simulation
         if self.observation_kind == "absolute":
+            if self.holds_targets:
+                shift = torch.stack((predicted_destination[..., 3], predicted_destination[..., 2],
+                                     torch.zeros_like(predicted_destination[..., 2])), dim=-1)
+                last_action = last_action - shift
             aircraft_state, predicted_destination = in_destination_frame(aircraft_state, predicted_destination)
         return self.observation_function(aircraft_state, predicted_destination, last_action, simulation.airspace,
                                          simulation.limits)
 
     def actions(self, state: TensorDictBase, predicted_destination: torch.Tensor) -> torch.Tensor:
-        """B's deterministic action ``(...)`` on ``state`` (``aircraft_state``, ``last_action``) whose destination
-        fields are ``predicted_destination (..., 4)`` (equation 20)."""
-        return self.mode(self.observation(state["aircraft_state"], predicted_destination, state["last_action"]))
+        """B's deterministic action ``(...)`` on ``state`` (``aircraft_state``, ``last_action`` or, for B holding
+        targets, ``held_targets``) whose destination fields are ``predicted_destination (..., 4)`` (equation 20)."""
+        memory = state["held_targets"] if self.holds_targets else state["last_action"]
+        return self.mode(self.observation(state["aircraft_state"], predicted_destination, memory))
 
     def mode(self, observation: torch.Tensor) -> torch.Tensor:
         """B's action in deterministic mode on ``observation (..., features)``: the mode of its distribution (the

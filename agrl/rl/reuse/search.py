@@ -19,6 +19,7 @@ from typing import NamedTuple
 import torch
 from tensordict import TensorDictBase
 
+from agrl.core.autopilot import HeldTargets, TargetActionTable, apply_target_action
 from agrl.core.simulation import DecisionResult
 from agrl.core.termination import Outcome
 from agrl.rl.reuse.prediction import BaselinePolicy
@@ -83,6 +84,7 @@ Simulator = Callable[..., DecisionResult]
 def search_candidates(
     start_rows: TensorDictBase, trajectory: torch.Tensor, motion: torch.Tensor, *, candidates: torch.Tensor,
     keep: str, baseline: BaselinePolicy, simulator: Simulator, max_decisions: int,
+    targets: TargetActionTable | None = None,
 ) -> SearchResult:
     """Roll out every (episode, t_n) candidate from the episodes' start rows; keep the earliest or latest success.
 
@@ -90,7 +92,9 @@ def search_candidates(
     ``step_count``); ``trajectory (E, max_decisions + 1, 4)`` and ``motion (E, max_decisions, 2)``: the predicted
     destination (:func:`~agrl.rl.reuse.prediction.destination_prediction`); ``candidates``: the grid of t_n
     (:func:`candidate_steps`); ``keep``: ``earliest`` or ``latest``; ``simulator``: the environment's
-    (``GuidanceEnv.simulator``), called as ``simulator(aircraft, destination, speed, turn_rate, action)``.
+    (``GuidanceEnv.simulator``), called as ``simulator(aircraft, destination, speed, turn_rate, action)``;
+    ``targets``: for B holding targets, its action table (``GuidanceEnv.target_table``): each step then sets B's
+    held targets (``start_rows["held_targets"]`` at S_0) and the simulator's ``fly_targets`` flies them.
 
     The candidates run in waves (:func:`candidate_waves`), in the order they would be kept (earliest: ascending
     t_n): an episode with a success in one wave has its kept candidate there, so its later waves are not run.
@@ -114,7 +118,7 @@ def search_candidates(
         baseline_log_prob=aircraft.new_zeros(episodes, max_decisions),
     )
     wave_search = _WaveSearch(start_rows, trajectory, motion, candidates, keep, baseline, simulator, max_decisions,
-                              spacing, best, arrival, record)
+                              spacing, best, arrival, record, targets)
     pending = torch.arange(episodes, device=device)
     for wave in candidate_waves(count, keep):
         if pending.numel() == 0:
@@ -143,6 +147,7 @@ class _WaveSearch:
     best: torch.Tensor
     arrival: torch.Tensor
     record: SearchRecord
+    targets: TargetActionTable | None
 
     def run(self, pending: torch.Tensor, wave: torch.Tensor) -> None:
         """One time loop over the rows ``(episode, candidate)`` of the ``pending`` episodes and the ``wave``'s
@@ -165,7 +170,9 @@ class _WaveSearch:
         predicted = self.trajectory[episode, target_step]
         aircraft = start_rows["aircraft_state"][episode]
         destination = start_rows["destination_state"][episode]
-        last_action = start_rows["last_action"][episode].long()
+        # What B reads beside the state: the maneuver flown, or the targets held.
+        memory = (start_rows["last_action"][episode].long() if self.targets is None
+                  else start_rows["held_targets"][episode])
         reduce = "amin" if self.keep == "earliest" else "amax"
         # The running rows, compacted as rows end: their row number, episode, candidate, prediction and stop.
         alive = torch.arange(episode.numel(), device=device)
@@ -174,9 +181,16 @@ class _WaveSearch:
             if alive.numel() == 0:
                 break
             action, log_prob = self.baseline.mode_and_log_prob(
-                self.baseline.observation(aircraft, predicted, last_action))
-            result = _simulate(self.simulator, aircraft, destination, motion[episode, step, 0],
-                               motion[episode, step, 1], action)
+                self.baseline.observation(aircraft, predicted, memory))
+            if self.targets is None:
+                result = _simulate(self.simulator, aircraft, destination, motion[episode, step, 0],
+                                   motion[episode, step, 1], action)
+                memory_after = action
+            else:
+                held, _ = apply_target_action(HeldTargets(*memory.unbind(-1)), action, self.targets)
+                memory_after = torch.stack(tuple(held), dim=-1)
+                result = _simulate(self.simulator.fly_targets, aircraft, destination, motion[episode, step, 0],
+                                   motion[episode, step, 1], memory_after)
             log.append((alive, action, result.aircraft_state, result.destination_state, log_prob))
             success = result.outcome == Outcome.SUCCESS
             if bool(success.any()):
@@ -186,13 +200,13 @@ class _WaveSearch:
             # and not on the far side of its episode's kept success (it can no longer be the one kept).
             running = (result.outcome == Outcome.RUNNING) & (step + 1 < stop)
             running &= candidate < best[episode] if self.keep == "earliest" else candidate > best[episode]
-            aircraft, destination, last_action = result.aircraft_state, result.destination_state, action
+            aircraft, destination, memory = result.aircraft_state, result.destination_state, memory_after
             if bool(running.all()):
                 continue
             keep = running.nonzero().squeeze(-1)
             alive, episode, candidate, predicted, stop = (
                 field[keep] for field in (alive, episode, candidate, predicted, stop))
-            aircraft, destination, last_action = aircraft[keep], destination[keep], last_action[keep]
+            aircraft, destination, memory = aircraft[keep], destination[keep], memory[keep]
         if log:
             self._record(pending, wave, log)
 
@@ -224,13 +238,13 @@ class _WaveSearch:
 
 def _simulate(
     simulator: Simulator, aircraft: torch.Tensor, destination: torch.Tensor, destination_speed: torch.Tensor,
-    destination_turn_rate: torch.Tensor, action: torch.Tensor,
+    destination_turn_rate: torch.Tensor, control: torch.Tensor,
 ) -> DecisionResult:
-    """The environment's simulator (as in ``env.transition``), with a single row doubled: a batch of one
-    would make the fused simulator recompile (torch.compile specialises sizes 0 and 1), a 10-20 s stall in
-    the middle of training."""
-    if action.numel() != 1:
-        return simulator(aircraft, destination, destination_speed, destination_turn_rate, action)
+    """The environment's simulator (as in ``env.transition``; ``control``: the maneuver, or the held targets for
+    ``fly_targets``), with a single row doubled: a batch of one would make the fused simulator recompile
+    (torch.compile specialises sizes 0 and 1), a 10-20 s stall in the middle of training."""
+    if aircraft.shape[0] != 1:
+        return simulator(aircraft, destination, destination_speed, destination_turn_rate, control)
     doubled = simulator(aircraft.repeat(2, 1), destination.repeat(2, 1), destination_speed.repeat(2),
-                        destination_turn_rate.repeat(2), action.repeat(2))
+                        destination_turn_rate.repeat(2), control.repeat(2, *([1] * (control.dim() - 1))))
     return DecisionResult(*(field[:1] for field in doubled))

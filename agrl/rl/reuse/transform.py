@@ -62,7 +62,8 @@ class PolicyReuseTransform(Transform):
         self.baseline_actor = baseline_actor.eval().requires_grad_(False)
         # B's own input (its checkpoint's agent.observation), which may differ from Z's (the env's).
         self.baseline_observation = baseline_observation
-        self.baseline = BaselinePolicy(self.baseline_actor, env.params.simulation, baseline_observation)
+        self.baseline = BaselinePolicy(self.baseline_actor, env.params.simulation, baseline_observation,
+                                       holds_targets=env.holds_targets)
         self.env = env
         self.selection_factor = float(initial_selection_factor)
         self.selection_decay = float(selection_decay)
@@ -150,7 +151,7 @@ class PolicyReuseTransform(Transform):
             start_rows = known.rows[starts]
             result = search_candidates(start_rows, trajectory, motion, candidates=self.candidates, keep=self.keep,
                                        baseline=self.baseline, simulator=self.env.simulator,
-                                       max_decisions=self.env.params.max_decisions)
+                                       max_decisions=self.env.params.max_decisions, targets=self.env.target_table)
             found, dropped = fitting_episodes(result.index >= 0, result.arrival, traj_ids, episode_ids[starts],
                                               rows.numel(), self.max_rows)
             succeeded |= dropped  # found, but their rows would fall past max_rows: neither own nor re-played
