@@ -130,9 +130,10 @@ def test_extract_writes_a_row_per_run_evaluation_and_periodic_evaluation(tmp_pat
                                                              "runs.csv"]
     [row] = read_rows(data / "runs.csv")
     assert {key: row[key] for key in ("run", "task", "speed", "radius", "method", "reward", "switch_cost", "seed",
-                                      "overrides")} == {
+                                      "actions", "overrides")} == {
         "run": "sweep/reuse_s1", "task": "uniform", "speed": "50", "radius": "", "method": "reuse_from_baseline",
         "reward": "switch (k = 0.1, no continuous-action term)", "switch_cost": "0.1", "seed": "1",
+        "actions": "maneuvers",  # the run's config has no actions group: written before it existed
         "overrides": "task=uniform speed=50 method=reuse seed=1"}
     assert {key: row[key] for key in ("training_seconds", "iterations", "episodes", "success", "success_low",
                                       "instructions", "evaluation_seed")} == {
@@ -512,3 +513,11 @@ def test_a_bad_block_is_a_one_line_error_naming_the_file_and_line(tmp_path, caps
 def test_every_report_block_of_the_documentation_is_current(monkeypatch, capsys):
     monkeypatch.chdir(REPOSITORY)
     assert main(["pages", "--check"]) == 0, capsys.readouterr().err
+
+
+def test_a_run_holding_targets_is_extracted_with_its_action_set(tiny_targets_run):
+    from agrl.report.extract import extract
+
+    data = extract(tiny_targets_run.run_dir.parent)
+    [row] = [row for row in data["runs.csv"] if row["run"] == tiny_targets_run.run_dir.name]
+    assert row["actions"] == "targets" and row["task"] == "fixed" and row["iterations"] == tiny_targets_run.iterations

@@ -12,7 +12,7 @@ from typing import Any
 #: (seconds keep 6: TensorBoard's float32 values, rounded any coarser, can land on a table's rounding boundary).
 RUN_COLUMNS: dict[str, Any] = {
     "run": str, "task": str, "speed": 1, "radius": 1, "method": str, "reward": str, "switch_cost": 3, "seed": int,
-    "overrides": str, "commit": str, "training_seconds": 1, "iterations": int, "decisions_trained": int,
+    "actions": str, "overrides": str, "commit": str, "training_seconds": 1, "iterations": int, "decisions_trained": int,
     "episodes": int, "success": 5, "success_low": 5, "success_high": 5, "instructions": 4, "decisions": 4,
     "ms_per_instruction": 4, "evaluation_seed": int, "iterations_logged": int, "iteration_seconds_first": 6,
     "iteration_seconds_median": 6, "relabel_seconds_first": 6, "relabel_seconds_median": 6,

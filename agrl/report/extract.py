@@ -13,7 +13,10 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from agrl.config import upgraded_config  # (importing agrl.config registers the resolver of saved configs)
+from agrl.config import (  # (importing agrl.config registers the resolver of saved configs)
+    LEGACY_ACTIONS,
+    upgraded_config,
+)
 from agrl.report.columns import (
     CURVE_COLUMNS,
     DATA_FILES,
@@ -130,11 +133,12 @@ def _run_rows(name: str, config: dict | None, final: dict | None, overrides: str
         cost = reward.get("switch_cost") if reward.get("name") == "switch" else None
         from_baseline = bool(method.get("start_from_baseline"))
         seed = config.get("seed")
+        actions = config.get("actions", LEGACY_ACTIONS)["name"]  # a config without the group flew maneuvers
     else:  # a run that kept only its final evaluation
         task_name, method_name = final.get("task"), final.get("method")
         speed, radius, label, cost, from_baseline = final.get("speed"), final.get("radius"), final.get("reward"), \
             None, False
-        seed = final.get("seed")
+        seed, actions = final.get("seed"), None
     method_name = "reuse_from_baseline" if method_name == "reuse" and from_baseline else method_name
     iterations = [row for row in metrics if "time/iteration_seconds" in row]
     relabelled = [row["time/reuse_seconds"] for row in iterations if "time/reuse_seconds" in row]
@@ -144,7 +148,7 @@ def _run_rows(name: str, config: dict | None, final: dict | None, overrides: str
     interval = final.get("success_rate_ci95") or (None, None)
     run = _typed({
         "run": name, "task": task_name, "speed": speed, "radius": radius, "method": method_name, "reward": label,
-        "switch_cost": cost, "seed": seed, "overrides": overrides, "commit": final.get("commit"),
+        "switch_cost": cost, "seed": seed, "actions": actions, "overrides": overrides, "commit": final.get("commit"),
         "training_seconds": final.get("training_wall_time_s"), "iterations": final.get("iterations"),
         "decisions_trained": final.get("decisions_trained"), "episodes": final.get("episodes"),
         "success": final.get("success_rate"), "success_low": interval[0], "success_high": interval[1],

@@ -108,6 +108,22 @@ def test_resume_matches_an_uninterrupted_run_bitwise(tmp_path, tiny_run, compose
     assert rows == [[row.get(c) for c in columns] for row in read_metrics(tiny_run.run_dir)]
 
 
+def test_a_run_holding_targets_resumes_bitwise(tmp_path, tiny_targets_run, compose_train, tiny_args, run_cli):
+    """The same for ``actions=targets`` (the collector's rows carry their held targets): 1 iteration, then a resume
+    for 1 more == the shared 2-iteration run."""
+    straight = load_checkpoint(tiny_targets_run.run_dir / "checkpoints" / "latest.pt")
+    run = tmp_path / "run"
+    Trainer(compose_train(*tiny_args({**tiny_targets_run.changes, "ppo.total_frames": 512, "eval.episodes": 4})),
+            run).train()
+    result = run_cli("train", f"resume={run}", f"ppo.total_frames={tiny_targets_run.changes['ppo.total_frames']}",
+                     f"hydra.run.dir={tmp_path / 'resume_hydra'}")
+    assert result.returncode == 0, result.stderr[-3000:]
+    resumed = load_checkpoint(run / "checkpoints" / "latest.pt")
+    assert resumed["counters"]["iteration"] == tiny_targets_run.iterations
+    for key in TRAINING_STATE:
+        assert_bitwise_equal(resumed[key], straight[key], key)
+
+
 # ---------------------------------------------------------------------------- non-finite loss
 def test_non_finite_loss_stops_training_and_keeps_the_last_good_checkpoint(
     tmp_path, compose_train, tiny_args
