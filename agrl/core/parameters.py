@@ -38,6 +38,15 @@ MOTION_FIELDS = {
 }
 
 
+def require_fields_of_kind(record, kind: StrEnum, fields_by_kind: dict[str, tuple[str, ...]]) -> None:
+    """A record whose ``name`` is ``kind`` must set the fields that kind reads (``fields_by_kind[kind]``; the others
+    stay None): a ``ValueError`` naming the first one missing."""
+    missing = [name for name in fields_by_kind[kind.value] if getattr(record, name) is None]
+    if missing:
+        raise ValueError(f"{type(record).__name__} {missing[0]}=None is not allowed: name={kind.value} needs "
+                         f"{', '.join(fields_by_kind[kind.value])}")
+
+
 def tasks_taking(field_name: str) -> list[str]:
     """The tasks whose destination reads ``field_name`` (``tasks_taking("radius")`` -> ``["curved"]``)."""
     return [task for task, names in MOTION_FIELDS.items() if field_name in names]
@@ -64,11 +73,7 @@ class DestinationMotion:
     max_turn_rate_deg: float | None = None  # deg/s (the radians the simulator draws in: :attr:`max_turn_rate`)
 
     def __post_init__(self) -> None:
-        kind = MotionKind(self.name)
-        missing = [name for name in MOTION_FIELDS[kind.value] if getattr(self, name) is None]
-        if missing:
-            raise ValueError(f"DestinationMotion {missing[0]}=None is not allowed: name={kind.value} needs "
-                             f"{', '.join(MOTION_FIELDS[kind.value])}")
+        require_fields_of_kind(self, MotionKind(self.name), MOTION_FIELDS)
 
     @property
     def max_turn_rate(self) -> float | None:
@@ -141,11 +146,7 @@ class ActionSet:
     capture_fraction: float | None = None  # of the vertical acceleration the load factors allow
 
     def __post_init__(self) -> None:
-        kind = ActionKind(self.name)
-        missing = [name for name in ACTION_FIELDS[kind.value] if getattr(self, name) is None]
-        if missing:
-            raise ValueError(f"ActionSet {missing[0]}=None is not allowed: name={kind.value} needs "
-                             f"{', '.join(ACTION_FIELDS[kind.value])}")
+        require_fields_of_kind(self, ActionKind(self.name), ACTION_FIELDS)
 
     @property
     def holds_targets(self) -> bool:
