@@ -1,7 +1,7 @@
 """The paper's MDP as a single, unbatched gymnasium environment (fast: one row in Python floats).
 
-``import agrl`` registers it as ``agrl/Guidance-v0``, so any library that trains on
-gymnasium environments can use the paper's MDP::
+``import agrl`` registers it as ``agrl/Guidance-v0``, so any library that trains on gymnasium environments can use
+the paper's MDP::
 
     import gymnasium, agrl
     env = gymnasium.make("agrl/Guidance-v0", task="uniform", speed=50.0)
@@ -13,14 +13,13 @@ of the batched simulator, tested equal to it), the observation and reward are :m
 :mod:`agrl.core`'s (tested equal to them). Resets, seeding and the irregular destination's random redraws are
 those of a one-row :class:`agrl.envs.GuidanceEnv` (same functions, same generator), so from the same seed or
 scenario and the same actions the two environments fly the same episodes (``tests/envs/test_gym.py`` states the
-float tolerance: the batched env runs float32, this one float64). The many-environment form is
-:mod:`agrl.envs.gym_vector` (``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``). The task
-parameters are composed from ``conf/`` exactly as ``python -m agrl.train`` composes them (Hydra's compose API),
-so the YAML holds every default once.
+float tolerance: the batched env runs float32, this one float64). The many-environment form, which also takes the
+target-holding actions, is :mod:`agrl.envs.gym_vector` (``gymnasium.make_vec(..., vectorization_mode=
+"vector_entry_point")``). The task parameters are composed from ``conf/`` as ``python -m agrl.train`` does.
 
 Episodes end with ``terminated=True`` on success, on leaving the airspace and when the decision budget is spent:
-the budget is part of the paper's MDP (it pays ``reward.budget_exhausted``, c3), not a time limit, so
-``truncated`` is always False.
+the budget is part of the paper's MDP (it pays ``reward.budget_exhausted``, c3), not a time limit, so ``truncated``
+is always False.
 """
 
 from __future__ import annotations
@@ -228,28 +227,25 @@ class GuidanceGymEnv(gymnasium.Env):
     Keyword arguments (as ``gymnasium.make("agrl/Guidance-v0", **kwargs)``):
 
     - ``task``: ``fixed`` (default), ``uniform``, ``curved`` or ``irregular``;
-    - ``speed`` (m/s; uniform default 50, curved 20), ``radius`` (m; curved, default 1000),
-      ``turn_direction`` (curved: +1 counter-clockwise, -1 clockwise);
+    - ``speed`` (m/s; uniform 50, curved 20), ``radius`` (m; curved, 1000), ``turn_direction`` (curved: +1, -1);
     - ``max_decisions``: the decision budget (default 200, ``conf/simulation/paper.yaml``);
-    - ``reward``: ``switch`` (default: the training default, ``conf/config.yaml``), or Table 3's ``none``,
-      ``continuous``, ``position`` or ``both``;
-    - ``compile``: kept for the vector env (:mod:`agrl.envs.gym_vector`), where it fuses the
-      20 ms step with ``torch.compile``; this single env steps in Python floats and ignores it.
+    - ``reward``: ``switch`` (the training default), or Table 3's ``none``, ``continuous``, ``position``, ``both``;
+    - ``compile`` and ``actions``: the vector env's (:mod:`agrl.envs.gym_vector`); this env steps one row of the
+      maneuvers in Python floats (it ignores ``compile``, and ``actions="targets"`` is a one-line error).
 
-    Seed with ``reset(seed=...)``; start from explicit initial conditions with
-    ``reset(options={"aircraft_state": (x, y, z, v, theta, psi, phi), "destination_state": (x, y, z, psi),
-    "destination_speed": m/s, "destination_turn_rate": rad/s})`` (missing destination fields take the
-    task's). ``info`` holds ``outcome`` (``running``, ``success``, ``out_of_airspace``,
-    ``budget_exhausted``), ``aircraft_state`` (x, y, z, v, theta, psi, phi), ``destination_state``
-    (x, y, z, psi), ``step_count``, ``instruction_count`` and ``episode_return``.
+    Seed with ``reset(seed=...)``; start from explicit initial conditions with ``reset(options={"aircraft_state":
+    (x, y, z, v, theta, psi, phi), "destination_state": (x, y, z, psi), "destination_speed": m/s,
+    "destination_turn_rate": rad/s})`` (missing destination fields take the task's). ``info`` holds ``outcome``
+    (``running``, ``success``, ``out_of_airspace``, ``budget_exhausted``), ``aircraft_state`` (x, y, z, v, theta,
+    psi, phi), ``destination_state`` (x, y, z, psi), ``step_count``, ``instruction_count`` and ``episode_return``.
 
-    ``render_mode="rgb_array"``: ``render()`` returns a ``(450, 800, 3)`` uint8 frame of the episode so far
-    (3-D view with the airspace box and a top view; :func:`agrl.plots.episode_frame`), what
-    ``gymnasium.wrappers.RecordVideo`` and stable-baselines3 need. ``render_mode="human"`` shows the
-    frames in a matplotlib window at every step and needs a display: without one (no ``DISPLAY`` or
-    ``WAYLAND_DISPLAY`` on Linux) ``metadata["render_modes"]`` lists only ``rgb_array`` and the constructor
-    raises ``ValueError`` for ``human`` (``gymnasium.make(..., render_mode="human")`` then applies
-    gymnasium's own ``HumanRendering`` wrapper, which needs pygame and a display).
+    ``render_mode="rgb_array"``: ``render()`` returns a ``(450, 800, 3)`` uint8 frame of the episode so far (3-D
+    view with the airspace box and a top view; :func:`agrl.plots.episode_frame`), what
+    ``gymnasium.wrappers.RecordVideo`` and stable-baselines3 need. ``render_mode="human"`` shows the frames in a
+    matplotlib window at every step and needs a display: without one (no ``DISPLAY`` or ``WAYLAND_DISPLAY`` on
+    Linux) ``metadata["render_modes"]`` lists only ``rgb_array`` and the constructor raises ``ValueError`` for
+    ``human`` (``gymnasium.make(..., render_mode="human")`` then applies gymnasium's own ``HumanRendering`` wrapper,
+    which needs pygame and a display).
     """
 
     # "human" is offered only where a window can open (gymnasium's checker tries every listed mode).
@@ -265,7 +261,11 @@ class GuidanceGymEnv(gymnasium.Env):
         reward: str | None = None,
         compile: bool = False,
         render_mode: str | None = None,
+        actions: str | None = None,
     ):
+        if actions not in (None, "maneuvers"):  # one row in Python floats: the maneuvers' reference forms only
+            _fail("actions", actions, "None or 'maneuvers' for the single env; targets: gymnasium.make_vec(..., "
+                  "vectorization_mode='vector_entry_point', actions='targets'), any num_envs")
         if render_mode not in (None, "rgb_array", "human"):
             _fail("render_mode", render_mode, "None, 'rgb_array' or 'human'")
         if render_mode == "human" and not _has_display():

@@ -340,3 +340,11 @@ def test_bad_calls():
             env.step(action)
     _, _, _, _, info = env.step(np.array(2.0))  # a whole number, e.g. from an array, is that maneuver
     assert info["step_count"] == 2 and info["instruction_count"] == 2  # 0 -> 1 -> 2: two changes of maneuver
+
+
+def test_the_single_env_refuses_target_holding_actions_in_one_line():
+    with pytest.raises(ValueError) as error:
+        gymnasium.make(ENV_ID, actions="targets")
+    assert str(error.value).startswith("actions='targets' is not allowed: None or 'maneuvers' for the single env; "
+                                       "targets: gymnasium.make_vec(")
+    assert gymnasium.make(ENV_ID, actions="maneuvers").unwrapped.action_space.n == 7
