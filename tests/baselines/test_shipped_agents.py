@@ -148,3 +148,17 @@ def test_each_agent_still_flies_its_first_recorded_evaluation(name):
     instructions = records.instructions.double()
     margin = 3 * float(instructions.std()) / math.sqrt(instructions.numel())
     assert abs(summary["instructions_per_episode"] - record["instructions_per_episode"]) <= margin
+
+
+@pytest.mark.parametrize("override", ["actions.headings=8", "actions.altitude_step=1000", "actions.cruise_speed=180"])
+def test_reusing_a_target_agent_with_another_target_table_is_one_line(override):
+    """B's action indices mean what they mean in Z's env only with the same target table."""
+    from agrl.config import compose_checked, load_config
+    from agrl.train import check_inputs
+
+    config = load_config(compose_checked("actions=targets", "task=uniform", "method=reuse",
+                                         "method.baseline=baseline-targets", override))
+    with pytest.raises(CheckpointError) as error:
+        check_inputs(config)
+    assert str(error.value).startswith(f"{SHIPPED_AGENTS['baseline-targets'].file}: this run's target table is not "
+                                       "allowed with this baseline")

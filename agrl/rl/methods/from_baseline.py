@@ -22,7 +22,8 @@ def load_baseline(cfg: Any, device: torch.device | str, actor: ProbabilisticActo
                   start_from_it: bool):
     """``(B, path, B's observation)`` for ``cfg.method.baseline``: B is the frozen baseline actor. With
     ``start_from_it``, Z's ``actor`` and ``critic`` start from B's weights. A file that does not fit (unreadable,
-    another observation, other network shapes) is a :class:`CheckpointError` naming it."""
+    another action set or target table, another observation, other network shapes) is a :class:`CheckpointError`
+    naming it."""
     reference = cfg.method.baseline
     try:
         path = resolve_checkpoint_path(reference)
@@ -36,8 +37,17 @@ def load_baseline(cfg: Any, device: torch.device | str, actor: ProbabilisticActo
     if actions != cfg.actions.name:
         raise CheckpointError(f"{path}: actions={cfg.actions.name} is not allowed with this baseline: it was trained "
                               f"with actions={actions}; train Z with the same")
-    # A baseline holding targets counts its actions from its own airspace and limits (its saved config).
+    # A baseline holding targets counts its actions from its own airspace and limits (its saved config); its action
+    # indices mean what they mean in Z's env only if the two target tables are the same.
     params = saved_guidance_parameters(saved) if actions != LEGACY_ACTIONS["name"] else None
+    if params is not None:
+        own = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, actions=cfg.actions)
+        tables = [record.actions.target_table(record.simulation.airspace, record.simulation.limits)
+                  for record in (own, params)]
+        if not all(torch.equal(mine, theirs) for mine, theirs in zip(*tables, strict=True)):
+            raise CheckpointError(f"{path}: this run's target table is not allowed with this baseline: B's (its "
+                                  "actions.headings, altitude_step, lowest_altitude, cruise_speed, the airspace's "
+                                  "heights and the speed limits) differs; train Z with the same")
     if start_from_it:
         if observation != cfg.agent.observation:
             raise CheckpointError(
