@@ -399,11 +399,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             record = bench_simulator(params, batch, compiled, device, args.repeats, args.min_seconds)
             record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
             emit(record)
+    targets = gym_parameters(**TASK, actions="targets")  # the autopilot flying held targets (actions=targets)
     for mode in args.modes:
-        record = bench_torchrl_env(params, args.env_batch, mode == "compiled", device, args.repeats,
-                                   args.min_seconds)
-        record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
-        emit(record)
+        for actions, task in (("maneuvers", params), ("targets", targets)):
+            record = bench_torchrl_env(task, args.env_batch, mode == "compiled", device, args.repeats,
+                                       args.min_seconds)
+            record["actions"] = actions
+            record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
+            emit(record)
     for mode in args.modes:
         record = bench_gym_vector_env(TASK, args.env_batch, mode == "compiled", device, args.repeats,
                                       args.min_seconds)

@@ -61,6 +61,7 @@ def test_quick_run_prints_json_lines(benchmark_runs):
         "simulator_decisions_per_second",
         "simulator_decisions_per_second",
         "torchrl_env_decisions_per_second",
+        "torchrl_env_decisions_per_second",
         "gym_vector_env_decisions_per_second",
         "gym_env_decisions_per_second",
         "guide_single_query_us",
@@ -74,7 +75,8 @@ def test_quick_run_prints_json_lines(benchmark_runs):
         assert record["unit"] == "decisions/s" and record["value"] > 0
         assert record["substeps"] == 150 and record["compiled"] is False
         assert {"batch", "device"} <= set(record)
-    assert [record["batch"] for record in records[2:]] == [8, 32, 8, 8, 1]
+    assert [record["batch"] for record in records[2:]] == [8, 32, 8, 8, 8, 1]
+    assert [record.get("actions") for record in records[4:6]] == ["maneuvers", "targets"]
     assert all(record["speedup_vs_reference"] > 0 for record in records[2:])
 
 
