@@ -89,12 +89,17 @@ class GuidePolicy(nn.Module):
         self.airspace = airspace
         self.limits = limits
         self.actions = actions
-        self._observe = target_observation_function("relative") if actions.holds_targets else policy_observation
+        self._observation = (target_observation_function("relative") if actions.holds_targets
+                             else policy_observation)
+
+    def observe(self, aircraft_state: torch.Tensor, destination_state: torch.Tensor,
+                last_action: torch.Tensor) -> torch.Tensor:
+        """The network's input from the raw state (``last_action``: the held targets for an agent holding them)."""
+        return self._observation(aircraft_state, destination_state, last_action, self.airspace, self.limits)
 
     def forward(self, aircraft_state: torch.Tensor, destination_state: torch.Tensor,
                 last_action: torch.Tensor) -> torch.Tensor:
-        observation = self._observe(aircraft_state, destination_state, last_action, self.airspace, self.limits)
-        return self.network(observation).argmax(-1)
+        return self.network(self.observe(aircraft_state, destination_state, last_action)).argmax(-1)
 
 
 class BatchedLayers:
@@ -354,7 +359,7 @@ class Guide:
         with torch.inference_mode():  # no autograd bookkeeping at all (no_grad still counts tensor versions)
             if self._batched is None:
                 return self._runner(*inputs).numpy()
-            observation = self.policy._observe(*inputs, self.airspace, self.limits)
+            observation = self.policy.observe(*inputs)
             return self._batched(observation).argmax(-1).numpy()
 
     def plan(self, aircraft_state, destination_state=None, task: Sequence[str] = (), last_action: int = 0) -> Plan:

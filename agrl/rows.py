@@ -30,7 +30,7 @@ the absolute times are pessimistic; the ratios are what matter), one process at 
 
 and the STATEMENTs ``observation_row(a, d, 3, s.airspace, s.limits); step_reward_row(0, potential_row(a, d, 0,
 0, False, r), potential_row(a, d, 3, 0, False, r), r, True)`` against ``policy_observation(A, D, N, s.airspace,
-s.limits); step_reward(O, A, D, L, L, N, A, D, r)``, and ``reference_decision(a, d, 0.0, 0.0, 1, s,
+s.limits); step_reward(O, A, D, L, L, N, A, D, r, N != L)``, and ``reference_decision(a, d, 0.0, 0.0, 1, s,
 p.maneuvers)`` against ``sim(A, D, Z, Z, torch.tensor([1]))``.
 
 What each function copies:

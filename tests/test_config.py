@@ -14,7 +14,6 @@ from omegaconf import MISSING
 from omegaconf.errors import ValidationError
 
 from agrl.config import (
-    LEGACY_ACTIONS,
     ActionsConfig,
     AgentConfig,
     ConfigError,
@@ -464,14 +463,13 @@ def test_a_bad_action_set_is_one_line_naming_the_value(overrides, message):
 
 
 def test_a_saved_config_without_actions_flies_the_papers_maneuvers():
+    from omegaconf import OmegaConf
+
     from agrl.config import saved_guidance_parameters
 
-    cfg = compose_config("actions=targets")
-    saved = {key: dict(value) if hasattr(value, "keys") else value
-             for key, value in __import__("omegaconf").OmegaConf.to_container(cfg, resolve=True).items()}
+    saved = OmegaConf.to_container(compose_config("actions=targets"), resolve=True)  # as a checkpoint saves it
     assert saved_guidance_parameters(saved).actions.holds_targets
     del saved["actions"]
-    assert LEGACY_ACTIONS == {"name": "maneuvers"}
     assert saved_guidance_parameters(saved).actions.name is ActionKind.MANEUVERS
 
 

@@ -23,6 +23,9 @@ pre-training hands Z weights that never learnt to read the destination's fields.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import NamedTuple
+
 import torch
 
 from agrl.core.aircraft import MANEUVER_NAMES, AircraftLimits, wrap_angle
@@ -247,18 +250,29 @@ def held_target_features(
     ), dim=-1)
 
 
-#: ``agent.observation`` -> (the function computing a maneuver agent's policy input from equation 4's fields, its
-#: feature names; the geometric features alone, for an agent holding targets).
+class ObservationKind(NamedTuple):
+    """One ``agent.observation``: a maneuver agent's input (``function``, ``features``: the geometry, then the last
+    maneuver) and its geometric features alone (``geometry``, ``geometry_features``), which an agent holding targets
+    reads before its held targets."""
+
+    function: Callable[..., torch.Tensor]
+    features: tuple[str, ...]
+    geometry: Callable[..., torch.Tensor]
+    geometry_features: tuple[str, ...]
+
+
+#: ``agent.observation`` -> its functions and feature names.
 OBSERVATIONS = {
-    "relative": (policy_observation, OBSERVATION_FEATURES, relative_features, RELATIVE_FEATURES),
-    "absolute": (absolute_observation, ABSOLUTE_OBSERVATION_FEATURES, absolute_features, ABSOLUTE_FEATURES),
+    "relative": ObservationKind(policy_observation, OBSERVATION_FEATURES, relative_features, RELATIVE_FEATURES),
+    "absolute": ObservationKind(absolute_observation, ABSOLUTE_OBSERVATION_FEATURES, absolute_features,
+                                ABSOLUTE_FEATURES),
 }
 #: What a checkpoint written before ``agent.observation`` existed reads (the shipped ``baseline-both-terms`` among
 #: them).
 LEGACY_OBSERVATION = "relative"
 
 
-def _observation(kind: str):
+def _observation(kind: str) -> ObservationKind:
     if kind not in OBSERVATIONS:
         raise ValueError(f"observation={kind!r} is not allowed: one of {', '.join(OBSERVATIONS)}")
     return OBSERVATIONS[kind]
@@ -267,14 +281,14 @@ def _observation(kind: str):
 def observation_function(kind: str):
     """The function computing observation ``kind``'s policy input from equation 4's fields (a maneuver agent's:
     the geometry, then the last maneuver)."""
-    return _observation(kind)[0]
+    return _observation(kind).function
 
 
 def target_observation_function(kind: str):
     """The function computing observation ``kind``'s policy input for an agent holding targets:
     ``(aircraft_state, destination_state, held_targets, airspace, limits) -> (..., size)``, the geometric features
     of ``kind``, then :func:`held_target_features` (the held targets take the last maneuver's place)."""
-    geometry = _observation(kind)[2]
+    geometry = _observation(kind).geometry
 
     def observe(aircraft_state, destination_state, held_targets, airspace, limits):
         return torch.cat((geometry(aircraft_state, destination_state, airspace, limits),
@@ -286,7 +300,7 @@ def target_observation_function(kind: str):
 def observation_features(kind: str, holds_targets: bool = False) -> tuple[str, ...]:
     """The names of observation ``kind``'s features, in order, for a maneuver agent or one holding targets."""
     entry = _observation(kind)
-    return entry[3] + HELD_TARGET_FEATURES if holds_targets else entry[1]
+    return entry.geometry_features + HELD_TARGET_FEATURES if holds_targets else entry.features
 
 
 def observation_size(kind: str, holds_targets: bool = False) -> int:

@@ -130,16 +130,14 @@ def shaping_reward(
     return params.gamma * potential_after - potential_before
 
 
-def switch_cost_reward(
-    action: torch.Tensor, previous_action: torch.Tensor, params: RewardParameters,
-    instruction: torch.Tensor | None = None,
-) -> torch.Tensor:
-    """NOT from the paper: -switch_cost on every decision whose maneuver differs from the one being flown.
+def switch_cost_reward(instruction: torch.Tensor, params: RewardParameters) -> torch.Tensor:
+    """NOT from the paper: -switch_cost on every decision that is an instruction (``instruction``, bool).
 
-    ``previous_action`` is the maneuver flown before this decision (the state's
-    ``last_action``; an episode starts in steady flight, so the first decision
-    pays only if it commands a maneuver). It prices exactly what the evaluation
-    counts as an instruction. Unlike equation 9's potential it does not
+    What an instruction is belongs to the action set, and the environment says it
+    (:class:`agrl.envs.GuidanceEnv`): for the paper's maneuvers a decision whose maneuver differs from the one
+    being flown (an episode starts in steady flight, so the first decision pays only if it commands a maneuver),
+    for held targets an action that changes a target. It prices exactly what the evaluation counts as an
+    instruction. Unlike equation 9's potential it does not
     telescope, so it changes which policy is optimal: the paper's potential form
     provably cannot make the agent switch less (module doc), this term can.
     The cost is paid when the switch happens (discounted by gamma^t like every
@@ -147,13 +145,8 @@ def switch_cost_reward(
     gamma = 0.99, each extra decision of flight costs about c1 * gamma^T * (1 - gamma)
     (about 0.14 at T = 35), and a switch cost k trades one instruction against about
     k / 0.14 extra decisions.
-
-    An agent holding targets (:mod:`agrl.core.autopilot`) gives an instruction when an action changes a target,
-    not when it differs from the previous action: it passes ``instruction`` (bool, batch shape), which then
-    replaces the comparison.
     """
-    changed = action != previous_action if instruction is None else instruction
-    return torch.where(changed, -params.switch_cost, 0.0).to(torch.float32)
+    return torch.where(instruction, -params.switch_cost, 0.0).to(torch.float32)
 
 
 #: Names of :func:`step_reward`'s parts, in the order they are summed; the env returns each at every step and
@@ -171,7 +164,7 @@ def step_reward(
     next_aircraft_state: torch.Tensor,
     next_destination_state: torch.Tensor,
     params: RewardParameters,
-    instruction: torch.Tensor | None = None,
+    instruction: torch.Tensor,
 ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """Equation 5, R = T + F, plus the switch cost: the reward of the decision ``action`` taken in S_t.
 
@@ -183,8 +176,7 @@ def step_reward(
     Returns the total and its parts (:data:`REWARD_PART_KEYS`), which sum to it in that order: the termination
     reward T (:func:`termination_reward`), F split by potential term, gamma C' - C and gamma P' - P (each
     :func:`shaping_reward` of its own :func:`potential_terms` term; exact since equation 7 is linear in
-    Phi = C + P), and :func:`switch_cost_reward` (``instruction``: which decisions are instructions, for an agent
-    whose instructions are not changes of action; see there).
+    Phi = C + P), and :func:`switch_cost_reward` on ``instruction`` (which decisions are instructions; see there).
     """
     terminal = outcome != Outcome.RUNNING
     action_before, position_before = potential_terms(
@@ -197,7 +189,7 @@ def step_reward(
         termination_reward(outcome, params),
         shaping_reward(action_before, action_after, params),
         shaping_reward(position_before, position_after, params),
-        switch_cost_reward(action, last_action, params, instruction),
+        switch_cost_reward(instruction, params),
     )
     total = termination + action_shaping + position_shaping + switch_cost
     return total, dict(zip(REWARD_PART_KEYS, parts, strict=True))

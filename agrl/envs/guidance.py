@@ -88,18 +88,19 @@ class GuidanceEnv(EnvBase):
         super().__init__(device=device, batch_size=torch.Size([int(num_envs)]))
         self.params = params
         self.observation_kind = observation
-        self._observation_size = observation_size(observation)  # one-line error on an unknown kind
-        self._observation = observation_function(observation)
         require_max_decisions(self.params.max_decisions)  # the schema's check: a record may be built without it
         actions = self.params.actions
         self.holds_targets = actions.holds_targets
         self.num_actions = self.params.num_actions
         self.row_keys = (*STATE_KEYS, HELD_TARGETS_KEY) if self.holds_targets else STATE_KEYS
-        self.target_table = actions.target_table(self.params.simulation.airspace, self.params.simulation.limits)
-        if self.target_table is not None:
-            self.target_table = type(self.target_table)(*(field.to(self.device) for field in self.target_table))
-            self._observation = target_observation_function(observation)
-            self._observation_size = observation_size(observation, holds_targets=True)
+        self._observation_size = observation_size(observation, self.holds_targets)  # one line on an unknown kind
+        self._observation = (target_observation_function(observation) if self.holds_targets
+                             else observation_function(observation))
+        self.target_table = None
+        if self.holds_targets:
+            simulation = self.params.simulation
+            table = actions.target_table(simulation.airspace, simulation.limits)
+            self.target_table = type(table)(*(field.to(self.device) for field in table))
         self.simulator = DecisionSimulator(
             self.params.simulation, self.params.maneuvers.controls(self.device), compile=self.params.compile,
             autopilot=actions.autopilot(self.params.maneuvers),
@@ -303,26 +304,30 @@ class GuidanceEnv(EnvBase):
         random redraw. The policy-reuse step calls it to re-simulate episodes exactly
         as the environment would. Works for any batch shape of ``state``.
         """
+        targets = None
         if self.holds_targets:
+            targets = self.targets_after(state)
             result = self.simulator.fly_targets(
                 state["aircraft_state"], state["destination_state"], destination_speed, destination_turn_rate,
-                self.targets_after(state)[0],
+                targets[0],
             )
         else:
             result = self.simulator(
                 state["aircraft_state"], state["destination_state"], destination_speed, destination_turn_rate,
                 state["action"].long(),
             )
-        return self.complete_transition(state, result, destination_speed, destination_turn_rate)
+        return self.complete_transition(state, result, destination_speed, destination_turn_rate, targets)
 
     def complete_transition(
         self, state: TensorDictBase, result: DecisionResult, destination_speed: torch.Tensor,
-        destination_turn_rate: torch.Tensor,
+        destination_turn_rate: torch.Tensor, targets: tuple[torch.Tensor, torch.Tensor] | None = None,
     ) -> TensorDictBase:
         """The rest of :meth:`transition` once the simulator's ``result`` for ``state``'s action is known.
 
         The policy-reuse step records the simulator's results while it searches, then completes the kept
         episodes' transitions with this in one batch (any batch shape) instead of simulating them again.
+        ``targets``: for an agent holding targets, :meth:`targets_after` of ``state`` if the caller has it (else it
+        is computed here).
         """
         action = state["action"].long()
         step_count = state["step_count"] + 1
@@ -350,14 +355,14 @@ class GuidanceEnv(EnvBase):
         )
         # An instruction is a decision that changes the maneuver being flown, or a held target.
         if self.holds_targets:
-            next_state[HELD_TARGETS_KEY], instruction = self.targets_after(state)
+            next_state[HELD_TARGETS_KEY], instruction = targets if targets is not None else self.targets_after(state)
         else:
             instruction = action != state["last_action"]
         # Equation 5 plus the switch cost, and its parts (logged; they sum to the reward).
         reward, parts = step_reward(
             outcome, state["aircraft_state"], state["destination_state"], state["last_action"],
             state["action_before_last"], action, result.aircraft_state, result.destination_state, self.params.reward,
-            instruction if self.holds_targets else None,
+            instruction,
         )
         next_state.update(parts)
         next_state["reward"] = reward.unsqueeze(-1)

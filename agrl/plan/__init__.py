@@ -30,7 +30,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -196,64 +196,75 @@ def plan(guide, params: GuidanceParameters, aircraft_state, destination_state=No
         destination_state = params.destination.start
     aircraft, destination = checked_states(params, aircraft_state, destination_state)
     speed, turn_rate = (float(value[0]) for value in params.destination.initial_motion(1, None, "cpu"))
-    simulation, loads = params.simulation, params.maneuvers
-    if getattr(guide, "holds_targets", False):  # any object with instruct() is a guide; maneuvers unless it says
-        return _plan_targets(guide, params, aircraft, destination, speed, turn_rate)
-    times, aircraft_path, destination_path, maneuvers = [0.0], [aircraft], [destination], []
-    instructions, flight_time, outcome = [], 0.0, Outcome.BUDGET_EXHAUSTED
-    for decision in range(params.max_decisions):
-        maneuver = guide.instruct(aircraft, destination, last_action)
-        if maneuver != last_action:
-            instructions.append(Instruction(decision * simulation.decision_period, maneuver, MANEUVER_NAMES[maneuver],
-                                            maneuver_text(maneuver, loads), tuple(aircraft[:3])))
-        result = reference_decision(aircraft, destination, speed, turn_rate, maneuver, simulation, loads)
-        aircraft, destination, last_action = result.aircraft_state, result.destination_state, maneuver
-        flight_time += result.substeps * simulation.integration_step
-        times.append(flight_time)
-        aircraft_path.append(aircraft)
-        destination_path.append(destination)
-        maneuvers.append(maneuver)
-        if result.outcome != Outcome.RUNNING:
-            outcome = Outcome(result.outcome)
-            break
-    trajectory = Trajectory(times, aircraft_path, destination_path, maneuvers)
-    return Plan(instructions, trajectory, outcome.name.lower(), flight_time, len(maneuvers))
-
-
-def _plan_targets(guide, params: GuidanceParameters, aircraft: tuple, destination: tuple, speed: float,
-                  turn_rate: float) -> Plan:
-    """:func:`plan` for an agent holding targets: the aircraft starts holding what it flies; each decision the
-    guide picks an action, the autopilot flies the targets it leaves (:meth:`DecisionSimulator.fly_targets`, one
-    row, eager), and an action that changes a target is an instruction."""
-    simulation = params.simulation
-    simulator = DecisionSimulator(simulation, params.maneuvers.controls(), autopilot=params.actions.autopilot(
-        params.maneuvers))
-    table = params.actions.target_table(simulation.airspace, simulation.limits)
-    aircraft_row = torch.tensor([aircraft], dtype=torch.float32)
-    destination_row = torch.tensor([destination], dtype=torch.float32)
-    held = HeldTargets.of(AircraftState.from_tensor(aircraft_row))
-    motion = torch.tensor([speed]), torch.tensor([turn_rate])
+    holds_targets = getattr(guide, "holds_targets", False)  # any object with instruct() is a guide (maneuvers)
+    fly = (_target_flight if holds_targets else _maneuver_flight)(guide, params, aircraft, destination, speed,
+                                                                  turn_rate, last_action)
     times, aircraft_path, destination_path, actions = [0.0], [aircraft], [destination], []
     instructions, flight_time, outcome = [], 0.0, Outcome.BUDGET_EXHAUSTED
     for decision in range(params.max_decisions):
-        action = guide.instruct(aircraft_path[-1], destination_path[-1], [float(value) for value in held])
-        held, changed = apply_target_action(held, torch.tensor([action]), table)
-        if bool(changed):
-            kind, value = TargetKind(int(table.kind[action])), float(table.value[action])
-            state = AircraftState.from_tensor(aircraft_row[0])
-            instructions.append(Instruction(decision * simulation.decision_period, action, kind.name.lower(),
-                                            target_instruction_text(kind, value, state),
+        action, said, (aircraft, destination, seconds, ended) = fly(aircraft, destination)
+        if said is not None:
+            instructions.append(Instruction(decision * params.simulation.decision_period, action, *said,
                                             tuple(aircraft_path[-1][:3])))
-        result = simulator.fly_targets(aircraft_row, destination_row, *motion, torch.stack(tuple(held), dim=-1))
-        aircraft_row, destination_row = result.aircraft_state, result.destination_state
-        # Whole decisions: the batched simulator does not say at which step a flight ended.
-        flight_time += simulation.decision_period
+        flight_time += seconds
         times.append(flight_time)
-        aircraft_path.append(tuple(aircraft_row[0].tolist()))
-        destination_path.append(tuple(destination_row[0].tolist()))
+        aircraft_path.append(aircraft)
+        destination_path.append(destination)
         actions.append(action)
-        if int(result.outcome[0]) != Outcome.RUNNING:
-            outcome = Outcome(int(result.outcome[0]))
+        if ended != Outcome.RUNNING:
+            outcome = Outcome(ended)
             break
     trajectory = Trajectory(times, aircraft_path, destination_path, actions)
     return Plan(instructions, trajectory, outcome.name.lower(), flight_time, len(actions))
+
+
+#: One decision of a flight: ``fly(aircraft, destination) -> (action, (name, text) if it is an instruction else None,
+#: (aircraft after, destination after, seconds flown, outcome code))``, the aircraft and destination as tuples.
+Flight = Callable[[tuple, tuple], tuple[int, tuple[str, str] | None, tuple[tuple, tuple, float, int]]]
+
+
+def _maneuver_flight(guide, params: GuidanceParameters, aircraft: tuple, destination: tuple, speed: float,
+                     turn_rate: float, last_action: int) -> Flight:
+    """The single gymnasium env's flight: the guide's maneuver, flown by :func:`agrl.reference.reference_decision`;
+    an instruction is a change of maneuver, the aircraft flying ``last_action`` at the start."""
+    simulation, loads = params.simulation, params.maneuvers
+    flying = [last_action]
+
+    def fly(aircraft: tuple, destination: tuple):
+        maneuver = guide.instruct(aircraft, destination, flying[0])
+        said = (MANEUVER_NAMES[maneuver], maneuver_text(maneuver, loads)) if maneuver != flying[0] else None
+        result = reference_decision(aircraft, destination, speed, turn_rate, maneuver, simulation, loads)
+        flying[0] = maneuver
+        return maneuver, said, (result.aircraft_state, result.destination_state,
+                                result.substeps * simulation.integration_step, result.outcome)
+
+    return fly
+
+
+def _target_flight(guide, params: GuidanceParameters, aircraft: tuple, destination: tuple, speed: float,
+                   turn_rate: float, last_action: int) -> Flight:
+    """An agent holding targets: the aircraft starts holding what it flies; each decision the guide picks an
+    action, the autopilot flies the targets it leaves (:meth:`DecisionSimulator.fly_targets`, one float32 row,
+    eager), and an action that changes a target is an instruction. A flight counts whole decisions: the batched
+    simulator does not say at which step it ended."""
+    simulation = params.simulation
+    simulator = DecisionSimulator(simulation, params.maneuvers.controls(),
+                                  autopilot=params.actions.autopilot(params.maneuvers))
+    table = params.actions.target_table(simulation.airspace, simulation.limits)
+    rows = [torch.tensor([aircraft], dtype=torch.float32), torch.tensor([destination], dtype=torch.float32)]
+    held = [HeldTargets.of(AircraftState.from_tensor(rows[0]))]
+    motion = torch.tensor([speed]), torch.tensor([turn_rate])
+
+    def fly(aircraft: tuple, destination: tuple):
+        action = guide.instruct(aircraft, destination, [float(value) for value in held[0]])
+        held[0], changed = apply_target_action(held[0], torch.tensor([action]), table)
+        said = None
+        if bool(changed):
+            kind, value = TargetKind(int(table.kind[action])), float(table.value[action])
+            said = kind.name.lower(), target_instruction_text(kind, value, AircraftState.from_tensor(rows[0][0]))
+        result = simulator.fly_targets(*rows, *motion, torch.stack(tuple(held[0]), dim=-1))
+        rows[:] = result.aircraft_state, result.destination_state
+        return action, said, (tuple(rows[0][0].tolist()), tuple(rows[1][0].tolist()), simulation.decision_period,
+                              int(result.outcome[0]))
+
+    return fly

@@ -71,7 +71,7 @@ def test_potential_and_reward_rows_equal_the_torch_reward(continuous, position, 
     expected_before = potential(aircraft, destination, last_action, before_last, torch.zeros_like(terminal), params)
     expected_after = potential(next_aircraft, next_destination, action, last_action, terminal, params)
     expected_reward, _ = step_reward(outcome, aircraft, destination, last_action, before_last, action,
-                                     next_aircraft, next_destination, params)
+                                     next_aircraft, next_destination, params, action != last_action)
     for index in range(200):
         before = potential_row(aircraft[index].tolist(), destination[index].tolist(), int(last_action[index]),
                                int(before_last[index]), False, params)

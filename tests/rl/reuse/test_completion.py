@@ -137,7 +137,8 @@ def test_rewards_are_the_environments_for_the_real_destination(relabelled):
         rows = trajectories[episode, : int(lengths[episode])]
         expected, _ = step_reward(rows["next", "outcome"], rows["aircraft_state"], rows["destination_state"],
                                   rows["last_action"], rows["action_before_last"], rows["action"],
-                                  rows["next", "aircraft_state"], rows["next", "destination_state"], reward_params)
+                                  rows["next", "aircraft_state"], rows["next", "destination_state"], reward_params,
+                                  rows["action"] != rows["last_action"])
         torch.testing.assert_close(rows["next", "reward"].squeeze(-1), expected)
         assert float(rows["next", "reward"][-1]) > 10.0, "the success pays c1"
 
