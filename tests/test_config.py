@@ -20,6 +20,7 @@ from agrl.config import (
     CurriculumConfig,
     EvaluateConfig,
     EvaluationConfig,
+    FinetuneConfig,
     InitialStateConfig,
     LimitsConfig,
     ManeuverConfig,
@@ -197,6 +198,11 @@ def test_wrong_type_names_the_value():
         (("search.success=0",), "search.success=0.0"),
         (("search.max_instructions=-1",), "search.max_instructions=-1.0"),
         (("search.penalty_seconds=-60",), "search.penalty_seconds=-60.0"),
+        (("finetune.iterations=-1",), "finetune.iterations=-1"),
+        (("finetune.learning_rate=0",), "finetune.learning_rate=0.0"),
+        (("finetune.iterations=20", "target_success=0"), "finetune.iterations=20 is not allowed: 0 when target_su"),
+        (("finetune.iterations=20", "ppo.collector_workers=2"), "finetune.iterations=20 is not allowed: 0 with ppo.co"),
+        (("finetune.iterations=20", "finetune.switch_cost=20"), "finetune.switch_cost=20.0 is not allowed: < reward"),
     ],
 )
 def test_config_errors_are_one_line_and_name_the_key(overrides, named):
@@ -243,7 +249,8 @@ def test_malformed_device_is_refused(device):
 
 
 SCHEMAS = [TaskConfig, ActionsConfig, RewardConfig, SimulationConfig, ToleranceConfig, LimitsConfig, ManeuverConfig,
-           InitialStateConfig, AgentConfig, PPOConfig, MethodConfig, EvaluationConfig, CurriculumConfig, TrainConfig,
+           InitialStateConfig, AgentConfig, PPOConfig, MethodConfig, EvaluationConfig, CurriculumConfig,
+           FinetuneConfig, TrainConfig,
            EvaluateConfig]
 
 

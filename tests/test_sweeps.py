@@ -54,4 +54,5 @@ def test_a_recipe_search_runs_optuna_trials_and_reports_the_best(run_cli, tiny_a
     best = yaml.safe_load((sweep / "optimization_results.yaml").read_text())
     assert best["best_value"] == pytest.approx(min(objectives.values()))
     assert set(best["best_params"]) == {"ppo.learning_rate", "ppo.epochs", "ppo.minibatch_size", "agent.actor_hidden",
-                                        "agent.critic_hidden", "reward.switch_cost"}
+                                        "agent.critic_hidden", "reward.switch_cost", "finetune.iterations",
+                                        "finetune.switch_cost", "finetune.learning_rate"}

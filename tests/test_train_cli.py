@@ -311,9 +311,6 @@ ONE_LINE_ERRORS = {
     "resume-shipped-agent": (("resume=baseline",),
                              ("resume=baseline is not allowed: baseline is a shipped agent, not a training run",
                               "method=pretrained method.baseline=baseline")),
-    "baseline-other-networks": (("method=pretrained", "method.baseline=baseline", "agent.actor_hidden=[64,64]"),
-                                ("fixed_baseline.pt: the actor network does not match this configuration",
-                                 "module.0.module.0.weight (64, 23) here, (128, 23) in the file")),
 }
 
 

@@ -36,6 +36,7 @@ from agrl.config.schemas import (
     CurriculumConfig,
     EvaluateConfig,
     EvaluationConfig,
+    FinetuneConfig,
     MethodConfig,
     PPOConfig,
     TrainConfig,
@@ -65,11 +66,11 @@ from agrl.config.task import (
 
 __all__ = [
     "LEGACY_ACTIONS", "MAX_DESTINATION_SPEED", "MAX_TURNING_RADIUS", "RENAMED_KEYS", "ActionsConfig", "AgentConfig",
-    "ConfigError", "CurriculumConfig", "EvaluateConfig", "EvaluationConfig", "InitialStateConfig", "LimitsConfig",
-    "ManeuverConfig", "MethodConfig", "PPOConfig", "RewardConfig", "SimulationConfig", "TaskConfig", "ToleranceConfig",
-    "TrainConfig", "build_record", "compose_checked", "compose_config", "config_options", "guidance_parameters",
-    "load_config", "method_class", "method_config", "method_names", "one_line", "override_key", "register_configs",
-    "register_method", "require", "require_actions_fit", "require_baseline", "require_device", "require_max_decisions",
-    "require_range_pair", "require_shorthands_used", "saved_agent_config", "saved_guidance_parameters", "task_label",
-    "to_guidance_parameters", "upgraded_config", "validated_section",
+    "ConfigError", "CurriculumConfig", "EvaluateConfig", "EvaluationConfig", "FinetuneConfig", "InitialStateConfig",
+    "LimitsConfig", "ManeuverConfig", "MethodConfig", "PPOConfig", "RewardConfig", "SimulationConfig", "TaskConfig",
+    "ToleranceConfig", "TrainConfig", "build_record", "compose_checked", "compose_config", "config_options",
+    "guidance_parameters", "load_config", "method_class", "method_config", "method_names", "one_line", "override_key",
+    "register_configs", "register_method", "require", "require_actions_fit", "require_baseline", "require_device",
+    "require_max_decisions", "require_range_pair", "require_shorthands_used", "saved_agent_config",
+    "saved_guidance_parameters", "task_label", "to_guidance_parameters", "upgraded_config", "validated_section",
 ]

@@ -180,6 +180,23 @@ class SearchConfig:
 
 
 @dataclass
+class FinetuneConfig:
+    """A switch-cost schedule in one run (not in the paper; docs/training.md): once a periodic evaluation reaches
+    ``target_success``, the run trains ``iterations`` more PPO iterations at ``reward.switch_cost = switch_cost``
+    instead of stopping: ``make train``'s stage 2 without a second process."""
+
+    iterations: int = MISSING  # PPO iterations after the target (0 = stop at the target)
+    switch_cost: float = MISSING  # reward units per instruction during them
+    learning_rate: float | None = MISSING  # Adam's rate during them; None: ppo.learning_rate's
+
+    def __post_init__(self) -> None:
+        require(self.iterations >= 0, "finetune.iterations", self.iterations, ">= 0 (0 = stop at target_success)")
+        require(self.switch_cost >= 0, "finetune.switch_cost", self.switch_cost, ">= 0 reward units per instruction")
+        require(self.learning_rate is None or self.learning_rate > 0, "finetune.learning_rate", self.learning_rate,
+                 "null (ppo.learning_rate) or > 0")
+
+
+@dataclass
 class CurriculumConfig:
     """Start-box curriculum: training episodes start in a shrunken box around the destination that grows
     as training succeeds (a reverse curriculum); evaluation always uses the full box."""
@@ -210,6 +227,7 @@ class TrainConfig:
     eval: EvaluationConfig = MISSING
     curriculum: CurriculumConfig = MISSING
     search: SearchConfig = MISSING
+    finetune: FinetuneConfig = MISSING
     speed: float | None = MISSING
     radius: float | None = MISSING
     seed: int = MISSING
@@ -230,6 +248,13 @@ class TrainConfig:
         workers = self.ppo.collector_workers
         require(workers == 1 or not self.resume, "ppo.collector_workers", workers,
                  "1 with resume (exact resume needs the single in-process collector's carried rows)")
+        if self.finetune.iterations:
+            require(self.target_success > 0, "finetune.iterations", self.finetune.iterations,
+                     "0 when target_success=0 (the fine-tune starts when a run reaches target_success)")
+            require(workers == 1, "finetune.iterations", self.finetune.iterations,
+                     "0 with ppo.collector_workers > 1 (the workers' envs keep their switch cost)")
+            require(self.finetune.switch_cost < self.reward.success, "finetune.switch_cost",
+                     self.finetune.switch_cost, f"< reward.success={self.reward.success}")
         self.method = method_config(self.method)
         self.method.check(self)
 

@@ -1,4 +1,5 @@
-"""What exact resume needs besides the networks: random-number states and the collector's carried rows.
+"""What exact resume needs besides the networks: the run's counters, random-number states and the collector's
+carried rows.
 
 Everything here is stored as tensors and plain Python values, so checkpoints load with
 ``torch.load(weights_only=True)`` (see :mod:`agrl.rl.checkpoint`).
@@ -7,6 +8,7 @@ Everything here is stored as tensors and plain Python values, so checkpoints loa
 from __future__ import annotations
 
 import random
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -15,6 +17,19 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.collectors import Collector
 
 from agrl.envs.guidance import GuidanceEnv
+
+
+@dataclass
+class Counters:
+    """Where a run is: checkpoints keep these, and a resumed run goes on from them."""
+
+    iteration: int = 0
+    frames: int = 0
+    wall_time: float = 0.0  # seconds of training, summed over resumed sessions
+    best_success: float = -1.0
+    curriculum_scale: float = 1.0  # fraction of the start box used for training episodes
+    next_evaluation_time: float = 0.0  # s of training; the wall-clock evaluation schedule (eval.interval_seconds)
+    finetune_from: int = 0  # the iteration after which the run's fine-tune began (0: not begun; cfg.finetune)
 
 
 def seed_everything(seed: int) -> None:

@@ -18,7 +18,7 @@ import json
 import logging
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +48,7 @@ from agrl.rl.ppo import (
     update_fields,
 )
 from agrl.rl.run_state import (
+    Counters,
     carried_rows,
     carried_rows_from_checkpoint,
     restore_rng_states,
@@ -55,20 +56,11 @@ from agrl.rl.run_state import (
     seed_everything,
 )
 from agrl.rl.stop_signals import PREEMPTED_MARKER, Preempted, StopSignals
+from agrl.rl.stopping import budget_spent, target_reached
 
 __all__ = ["Counters", "Trainer", "TrainingDiverged"]
 
 log = logging.getLogger("agrl.train")
-
-
-@dataclass
-class Counters:
-    iteration: int = 0
-    frames: int = 0
-    wall_time: float = 0.0  # seconds of training, summed over resumed sessions
-    best_success: float = -1.0
-    curriculum_scale: float = 1.0  # fraction of the start box used for training episodes
-    next_evaluation_time: float = 0.0  # s of training; the wall-clock evaluation schedule (eval.interval_seconds)
 
 
 class Trainer:
@@ -87,8 +79,9 @@ class Trainer:
 
         self.params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, actions=cfg.actions)
         self.env, self.eval_env = self._make_envs()
-        self.actor, self.critic = make_agent(cfg.agent, self.params, self.device)
         self.method = method_class(cfg.method.name)(cfg.method)  # an agrl.rl.methods.Method
+        cfg.agent = self.method.agent_config(cfg)  # pretrained: B's networks; checkpoints record what Z has
+        self.actor, self.critic = make_agent(cfg.agent, self.params, self.device)
         self.method.start(self)
         self._make_ppo()
         self.buffer = self._make_buffer()
@@ -123,12 +116,10 @@ class Trainer:
 
     def _make_collector(self) -> Collector | MultiSyncCollector:
         """``ppo.collector_workers=1``: one Collector stepping ``self.env`` here (exact resume carries its rows).
-        N > 1: TorchRL's MultiSyncCollector, N processes of ``num_envs / N`` envs each, their batches
-        concatenated along the env dimension (the same keys, shapes and dtypes); the actor's weights go to the
-        workers before each batch, and so does the curriculum's scale (:class:`SharedScaleGuidanceEnv` reads
-        ``self.worker_scale``, in shared memory, at each reset). Config validation keeps N > 1 to runs without
-        resume and to methods that allow it (policy reuse does not), which need ``self.env`` to be the envs that
-        collect."""
+        N > 1: TorchRL's MultiSyncCollector, N processes of ``num_envs / N`` envs each, batches concatenated along
+        the env dimension; the actor's weights and the curriculum's scale (``self.worker_scale``, shared memory)
+        go to the workers before each batch. The config keeps N > 1 from what needs ``self.env`` to collect
+        (resume, policy reuse, finetune)."""
         workers = self.cfg.ppo.collector_workers
         if workers == 1:
             return Collector(self.env, self.actor, frames_per_batch=self.frames_per_batch, total_frames=-1,
@@ -171,9 +162,16 @@ class Trainer:
         return Counters(curriculum_scale=curriculum.initial_scale if on else 1.0)
 
     # ------------------------------------------------------------------ checkpoints
+    @functools.cached_property
+    def _config_record(self) -> dict[str, Any]:
+        """The resolved config as checkpoints keep it; built once (it does not change during a run, and building it
+        costs about as much as the rest of a snapshot, which every iteration takes)."""
+        config = OmegaConf.structured(self.cfg)
+        return {"config": OmegaConf.to_container(config, resolve=True),
+                "config_yaml": OmegaConf.to_yaml(config, resolve=True)}
+
     def _state(self) -> dict[str, Any]:
         """Everything exact resume needs, as tensors and plain data (the file loads with weights_only=True)."""
-        config = OmegaConf.structured(self.cfg)
         return {
             "actor": copy.deepcopy(self.actor.state_dict()),
             "critic": copy.deepcopy(self.critic.state_dict()),
@@ -182,8 +180,7 @@ class Trainer:
             "carrier": carried_rows(self.collector) if isinstance(self.collector, Collector) else None,
             "method_state": self.method.state_dict(),
             "rng": rng_states(self.env),
-            "config": OmegaConf.to_container(config, resolve=True),
-            "config_yaml": OmegaConf.to_yaml(config, resolve=True),
+            **self._config_record,
             "run_dir": str(self.run_dir),
         }
 
@@ -202,6 +199,8 @@ class Trainer:
         state = payload.get("method_state", payload.get("reuse"))  # "reuse": checkpoints written before methods
         if state is not None:
             self.method.load_state_dict(state)
+        if self.counters.finetune_from:
+            self._set_switch_cost(self.cfg.finetune.switch_cost)
 
     def save(self, name: str, state: dict[str, Any] | None = None) -> Path:
         """Write checkpoint ``name``; ``latest`` keeps the one it replaces (``latest.previous.pt``), which a
@@ -230,8 +229,8 @@ class Trainer:
         metrics["train/curriculum_scale"] = self.counters.curriculum_scale
 
     def _set_learning_rate(self) -> float:
-        ppo = self.cfg.ppo
-        rate = ppo.learning_rate
+        ppo, finetune = self.cfg.ppo, self.cfg.finetune
+        rate = finetune.learning_rate if self.counters.finetune_from and finetune.learning_rate else ppo.learning_rate
         if ppo.anneal_lr:
             rate = annealed_learning_rate(ppo.learning_rate, self.counters.frames, ppo.total_frames)
         for group in self.optimizer.param_groups:
@@ -261,6 +260,8 @@ class Trainer:
     def _evaluation_due(self, metrics: dict[str, float]) -> bool:
         """Whether a periodic evaluation follows this iteration (``metrics``: its training statistics)."""
         schedule = self.cfg.eval
+        if self.counters.finetune_from:
+            return False  # they serve the stop, which has fired; the final evaluation reads the fine-tuned agent
         if schedule.min_train_success and not self._could_stop(metrics):
             return False  # the schedule resumes from here: no evaluation is owed for the skipped ones
         if schedule.interval_seconds:
@@ -302,12 +303,7 @@ class Trainer:
                 for key in ("success_rate", "instructions_per_episode", "decisions_per_episode", "mean_return")}
 
     def _finished(self) -> str | None:
-        ppo = self.cfg.ppo
-        if self.counters.frames >= ppo.total_frames:
-            return f"reached ppo.total_frames={ppo.total_frames}"
-        if ppo.max_minutes and self.counters.wall_time >= 60 * ppo.max_minutes:
-            return f"reached ppo.max_minutes={ppo.max_minutes}"
-        return None
+        return budget_spent(self.cfg, self.counters)  # a subclass may stop on its own rule (benchmarks/bench_race.py)
 
     # ------------------------------------------------------------------ the loop
     def train(self) -> dict[str, Any]:
@@ -367,6 +363,13 @@ class Trainer:
             if self._evaluation_due(metrics):
                 metrics.update(self._periodic_evaluation())
                 metrics.update(self._confirmation(metrics))
+                reason = target_reached(self.cfg, metrics)
+                if reason and self.cfg.finetune.iterations:  # before the snapshot: a resume finds the phase begun
+                    self.counters.finetune_from = self.counters.iteration
+                    self._set_switch_cost(self.cfg.finetune.switch_cost)
+                    log.info("%s: fine-tuning for %d iterations at switch cost %g", reason,
+                             self.cfg.finetune.iterations, self.cfg.finetune.switch_cost)
+                    reason = None
             self._snapshot = self._state()
             self._log(metrics)
             self._checkpoint(metrics)
@@ -376,7 +379,7 @@ class Trainer:
             if not show_progress and ("eval/success_rate" in metrics or self.counters.iteration == 1):
                 log.info(progress_line(self.counters.iteration, self.counters.frames, self.counters.wall_time,
                                        metrics))
-            reason = self._finished() or self._target_reached(metrics)
+            reason = self._finished() or reason
             if stop.received:
                 path = self.save("latest", self._snapshot)
                 (self.checkpoint_dir / PREEMPTED_MARKER).write_text(json.dumps(
@@ -407,13 +410,11 @@ class Trainer:
         summary, _ = self.evaluate(episodes, seed=self.confirm_seed)
         return {"eval/confirm_success_rate": summary["success_rate"]}
 
-    def _target_reached(self, metrics: dict[str, float]) -> str | None:
-        target, confirm = self.cfg.target_success, self.cfg.eval.confirm_episodes
-        success = metrics.get("eval/confirm_success_rate" if confirm else "eval/success_rate")
-        if target and success is not None and success >= target:
-            confirmed = f", confirmed on {confirm} other episodes ({success:.4f})" if confirm else ""
-            return f"periodic evaluation reached target_success={target}{confirmed}"
-        return None
+    def _set_switch_cost(self, switch_cost: float) -> None:
+        """The training env's (and so the reuse relabelling's) price per instruction, and the evaluations'."""
+        self.params = replace(self.params, reward=replace(self.params.reward, switch_cost=switch_cost))
+        for env in (self.env, self.eval_env):
+            env.set_switch_cost(switch_cost)
 
     def _log(self, metrics: dict[str, float]) -> None:
         # Every logged step carries its iteration and wall time (the initial evaluation's too): agrl.report's rows.

@@ -30,8 +30,10 @@ NOT_THE_RECIPE = {"progress", "method.baseline", "search.success", "search.max_i
 #: ``eval.confirm_episodes``: stage 1's confirmation holds where its periodic evaluation stopped it (``make train``
 #: gave the shipped files bit for bit with it), and stage 2 never stops on a target.
 #: ``actions``: the paper's maneuvers, the only actions there were (its target-holding fields unset).
+#: ``finetune``: none (0 iterations: the run stops at its target; the other two keys are then unread).
 ADDED_SINCE = {"ppo.target_kl": 0.0, "eval.confirm_episodes": 1000, "actions.name": "maneuvers",
-               **{f"actions.{name}": "None" for name in ACTION_FIELDS["targets"]}}
+               **{f"actions.{name}": "None" for name in ACTION_FIELDS["targets"]},
+               "finetune.iterations": 0, "finetune.switch_cost": 0.3, "finetune.learning_rate": "None"}
 
 
 def _recipe(config: dict) -> dict:

@@ -133,12 +133,16 @@ def test_run_directory_without_checkpoint_is_named(tmp_path):
 
 
 # ---------------------------------------------------------------------------- mismatched networks
-def test_pretrained_from_a_differently_sized_actor_is_a_one_line_error(
+def test_a_baseline_whose_weights_do_not_fit_its_own_config_is_a_one_line_error(
     small_trainer, compose_train, tiny_args, tmp_path
 ):
-    baseline = small_trainer.checkpoint_dir / "latest.pt"
+    """Z takes the networks B's saved config names: weights of other shapes (a file edited or put together by hand)
+    are refused in one line naming each differing parameter."""
+    payload = load_checkpoint(small_trainer.checkpoint_dir / "latest.pt")
+    payload["config"]["agent"]["actor_hidden"] = [128, 128]  # the weights stay one hidden layer of 32
+    baseline = tmp_path / "inconsistent.pt"
+    torch.save(payload, baseline)
     config = compose_train(*tiny_args(), "method=pretrained", f"method.baseline={baseline}")
-    assert config.agent.actor_hidden == [128, 128]
     with pytest.raises(CheckpointError) as raised:
         Trainer(config, tmp_path / "run")
     message = str(raised.value)
@@ -156,14 +160,21 @@ def test_pretrained_from_a_differently_sized_actor_is_a_one_line_error(
 )
 def test_pretrained_and_reuse_from_baseline_copy_its_weights(small_trainer, compose_train, tiny_args, tmp_path,
                                                             method, copied):
+    """Z starts from B's weights, and so has B's networks (one hidden layer of 32, not the agent section's 2 x 128),
+    which its checkpoints record; Z trained from scratch beside B keeps its own."""
     baseline = small_trainer.checkpoint_dir / "latest.pt"
-    config = compose_train(*tiny_args({"agent.actor_hidden": "[32]"}), *method, f"method.baseline={baseline}")
+    config = compose_train(*tiny_args({"ppo.total_frames": 512, "eval.episodes": 4}), *method,
+                           f"method.baseline={baseline}")
+    assert config.agent.actor_hidden == [128, 128]
     trainer = Trainer(config, tmp_path / "run")
+    assert trainer.cfg.agent.actor_hidden == ([32] if copied else [128, 128])
     saved = load_checkpoint(baseline)
     for network, state in (("actor", trainer.actor.state_dict()), ("critic", trainer.critic.state_dict())):
-        same = [torch.equal(value, saved[network][name]) for name, value in state.items()]
+        same = [name in saved[network] and torch.equal(value, saved[network][name]) for name, value in state.items()]
         assert all(same) if copied else not any(same), network
-    trainer.collector.shutdown()
+    trainer.train()
+    assert load_checkpoint(tmp_path / "run" / "checkpoints" / "latest.pt")["config"]["agent"]["actor_hidden"] == (
+        [32] if copied else [128, 128])
 
 
 # ---------------------------------------------------------------------------- safe loading

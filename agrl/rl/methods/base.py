@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 from tensordict import TensorDictBase
 from torchrl.envs import Transform
 
-from agrl.config import MethodConfig
+from agrl.config import AgentConfig, MethodConfig
 
 if TYPE_CHECKING:
     from agrl.rl.trainer import Trainer
@@ -24,11 +24,12 @@ class Method:
     """One way to train the agent Z. The hooks, in the order a run calls them:
 
     1. :meth:`check_inputs` (class method): before anything is written, read the files the run will read.
-    2. :meth:`start`: after Z's actor and critic exist, before the optimiser: starting weights, frozen helpers.
-    3. :meth:`storage_rows`, :meth:`buffer_transform`: the replay buffer's size and its transform.
-    4. per iteration: :meth:`buffer_rows` (what of the batch the buffer stores), :meth:`max_updates`, then
+    2. :meth:`agent_config`: the networks Z has (the ``agent`` section, or what the method's starting point needs).
+    3. :meth:`start`: after Z's actor and critic exist, before the optimiser: starting weights, frozen helpers.
+    4. :meth:`storage_rows`, :meth:`buffer_transform`: the replay buffer's size and its transform.
+    5. per iteration: :meth:`buffer_rows` (what of the batch the buffer stores), :meth:`max_updates`, then
        :meth:`iteration_metrics` (extra dashboard scalars).
-    5. checkpoints: :meth:`state_dict` / :meth:`load_state_dict` (extra state for exact resume).
+    6. checkpoints: :meth:`state_dict` / :meth:`load_state_dict` (extra state for exact resume).
     """
 
     config_class: ClassVar[type[MethodConfig]] = MethodConfig
@@ -41,6 +42,10 @@ class Method:
         """Read the files a run of this method will read (a baseline checkpoint) as it will, raising a one-line
         :class:`~agrl.rl.checkpoint.CheckpointError` or :class:`~agrl.config.ConfigError` if one does not fit.
         Runs before Hydra writes anything (``agrl.cli.run_checked``)."""
+
+    def agent_config(self, train_config: Any) -> AgentConfig:
+        """Z's networks and observation (the run records them in its checkpoints): ``train_config.agent``."""
+        return train_config.agent
 
     def start(self, trainer: Trainer) -> None:
         """Prepare the run: ``trainer.actor`` and ``trainer.critic`` exist (their starting weights may be loaded

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+import logging
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import torch
 from torchrl.modules import ProbabilisticActor, ValueOperator
 
-from agrl.config import LEGACY_ACTIONS, saved_guidance_parameters, to_guidance_parameters
+from agrl.config import LEGACY_ACTIONS, AgentConfig, saved_guidance_parameters, to_guidance_parameters
 from agrl.core.observation import LEGACY_OBSERVATION
 from agrl.envs.guidance import NUM_ACTIONS
 from agrl.rl.checkpoint import CheckpointError, load_checkpoint, load_module_state, resolve_checkpoint_path
@@ -17,6 +20,27 @@ from agrl.rl.models import make_actor, make_agent
 if TYPE_CHECKING:
     from agrl.rl.trainer import Trainer
 
+log = logging.getLogger("agrl.train")
+
+#: The ``agent`` keys that shape the networks (a Z started from B's weights has B's).
+NETWORK_KEYS = ("actor_hidden", "critic_hidden", "activation")
+
+
+def _load(reference: str) -> tuple[Path, dict]:
+    """B's checkpoint file and payload (``method.baseline``: a shipped agent's name, a file or a run directory)."""
+    try:
+        path = resolve_checkpoint_path(reference)
+        return path, load_checkpoint(path, required=("actor", "critic"))
+    except CheckpointError as error:
+        raise CheckpointError(f"method.baseline: {error}") from None
+
+
+def baseline_networks(cfg: Any) -> AgentConfig:
+    """``cfg.agent`` with B's layer widths and activation: the networks of a Z that starts from B's weights (B's
+    saved ``agent`` section; a file without one has ``cfg.agent``'s)."""
+    saved = _load(cfg.method.baseline)[1].get("config", {}).get("agent", {})
+    return dataclasses.replace(cfg.agent, **{key: saved[key] for key in NETWORK_KEYS if key in saved})
+
 
 def load_baseline(cfg: Any, device: torch.device | str, actor: ProbabilisticActor, critic: ValueOperator,
                   start_from_it: bool):
@@ -24,12 +48,7 @@ def load_baseline(cfg: Any, device: torch.device | str, actor: ProbabilisticActo
     ``start_from_it``, Z's ``actor`` and ``critic`` start from B's weights. A file that does not fit (unreadable,
     another action set or target table, another observation, other network shapes) is a :class:`CheckpointError`
     naming it."""
-    reference = cfg.method.baseline
-    try:
-        path = resolve_checkpoint_path(reference)
-        payload = load_checkpoint(path, required=("actor", "critic"))
-    except CheckpointError as error:
-        raise CheckpointError(f"method.baseline: {error}") from None
+    path, payload = _load(cfg.method.baseline)
     saved = payload.get("config", {})
     baseline_agent = saved.get("agent", {})
     observation = baseline_agent.get("observation", LEGACY_OBSERVATION)
@@ -78,8 +97,21 @@ class FromBaseline(Method):
     def check_inputs(cls, train_config: Any) -> None:
         params = to_guidance_parameters(train_config.task, train_config.reward, train_config.simulation,
                                         actions=train_config.actions)
-        load_baseline(train_config, "cpu", *make_agent(train_config.agent, params, "cpu"),
-                      cls(train_config.method).starts_from_baseline())
+        method = cls(train_config.method)
+        load_baseline(train_config, "cpu", *make_agent(method.agent_config(train_config), params, "cpu"),
+                      method.starts_from_baseline())
+
+    def agent_config(self, train_config: Any) -> AgentConfig:
+        """B's layer widths and activation when Z starts from B's weights (:meth:`starts_from_baseline`): Z can
+        only be B's networks then, whatever ``agent`` says (a difference is logged); else ``agent``'s."""
+        if not self.starts_from_baseline():
+            return train_config.agent
+        networks = baseline_networks(train_config)
+        if networks != train_config.agent:
+            given = ", ".join(f"{key}={getattr(train_config.agent, key)}" for key in NETWORK_KEYS)
+            log.info("method=%s: Z starts from B's weights, so it has B's networks (%s), not agent's (%s)",
+                     self.config.name, ", ".join(f"{key}={getattr(networks, key)}" for key in NETWORK_KEYS), given)
+        return networks
 
     def start(self, trainer: Trainer) -> None:
         self.baseline_actor, self.baseline_path, self.baseline_observation = load_baseline(

@@ -116,10 +116,18 @@ def test_pretrained_from_a_baseline_of_another_observation_is_a_one_line_error(r
     assert not (tmp_path / "pretrained").exists()
 
 
-def test_pretrained_with_a_different_actor_is_a_one_line_error(run_cli, tiny_args, tiny_run, tmp_path):
-    baseline = tiny_run.run_dir / "checkpoints" / "latest.pt"  # fixed task, the default [128, 128] actor
-    result = run_cli.checks("train", "method=pretrained", f"method.baseline={baseline}",
-                            "agent.actor_hidden=[32,32]", *tiny_args(), f"hydra.run.dir={tmp_path / 'pretrained'}")
+def test_pretrained_from_weights_that_do_not_fit_their_config_is_a_one_line_error(run_cli, tiny_args, tiny_run,
+                                                                                   tmp_path):
+    """Z takes the networks B's saved config names (whatever ``agent`` says); a file whose weights are of other
+    shapes (edited by hand) is refused before Hydra runs, in one line."""
+    import torch
+
+    payload = torch.load(tiny_run.run_dir / "checkpoints" / "latest.pt", weights_only=True)
+    payload["config"]["agent"]["actor_hidden"] = [32, 32]  # the weights stay the default [128, 128] actor's
+    baseline = tmp_path / "inconsistent.pt"
+    torch.save(payload, baseline)
+    result = run_cli.checks("train", "method=pretrained", f"method.baseline={baseline}", *tiny_args(),
+                            f"hydra.run.dir={tmp_path / 'pretrained'}")
     assert result.returncode == 2, result.stderr[-3000:]
     lines = [line for line in result.stderr.splitlines() if line.strip()]
     assert len(lines) == 1, result.stderr
