@@ -43,7 +43,9 @@ def test_a_recipe_search_runs_optuna_trials_and_reports_the_best(run_cli, tiny_a
     returning its search objective, and the study's best among them."""
     pytest.importorskip("hydra_plugins.hydra_optuna_sweeper")
     sweep = tmp_path / "search"
-    arguments = [arg for arg in tiny_args({"ppo.total_frames": 512, "eval.episodes": 4})
+    # A target (which finetune needs) that the tiny runs, without periodic evaluations, never reach: each trial
+    # ends on its frame budget whatever finetune.iterations the sampler draws.
+    arguments = [arg for arg in tiny_args({"ppo.total_frames": 512, "eval.episodes": 4, "target_success": 0.5})
                  if not arg.startswith(("ppo.minibatch_size=", "ppo.epochs="))]
     result = run_cli("train", "+experiment=recipe_search", "hydra.sweeper.n_trials=3", f"hydra.sweep.dir={sweep}",
                      "ppo.minibatch_size=choice(128,256)", *arguments, "-m", timeout=600)
