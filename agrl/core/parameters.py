@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 
 import torch
@@ -201,3 +201,7 @@ class GuidanceParameters:
     @property
     def num_actions(self) -> int:
         return self.actions.count(self.simulation.airspace, self.simulation.limits)
+
+    def with_switch_cost(self, switch_cost: float) -> GuidanceParameters:
+        """These parameters with each instruction priced at ``switch_cost`` reward units (a run's ``finetune``)."""
+        return replace(self, reward=replace(self.reward, switch_cost=switch_cost))

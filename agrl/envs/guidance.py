@@ -212,8 +212,7 @@ class GuidanceEnv(EnvBase):
 
     def set_switch_cost(self, switch_cost: float) -> None:
         """Price each instruction from the next step on at ``switch_cost`` reward units (a run's ``finetune``)."""
-        self.params = dataclasses.replace(self.params,
-                                          reward=dataclasses.replace(self.params.reward, switch_cost=switch_cost))
+        self.params = self.params.with_switch_cost(switch_cost)
 
     def restore_on_next_reset(self, state: TensorDictBase) -> None:
         """Make the next full reset return ``state`` (a saved batch of mid-episode rows).

@@ -18,7 +18,6 @@ import json
 import logging
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -412,7 +411,7 @@ class Trainer:
 
     def _set_switch_cost(self, switch_cost: float) -> None:
         """The training env's (and so the reuse relabelling's) price per instruction, and the evaluations'."""
-        self.params = replace(self.params, reward=replace(self.params.reward, switch_cost=switch_cost))
+        self.params = self.params.with_switch_cost(switch_cost)
         for env in (self.env, self.eval_env):
             env.set_switch_cost(switch_cost)
 
