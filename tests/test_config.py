@@ -156,12 +156,25 @@ def test_unknown_task_names_the_value():
     (("task=uniform", "speed=-5"), "speed=-5.0 is not allowed: task=uniform needs a destination speed in (0, 1000]"),
     (("task=uniform", "speed=1e20"), "speed=1e+20 is not allowed: task=uniform needs a destination speed in (0, 1000]"),
     (("task=curved", "radius=1e12"), "radius=1000000000000.0 is not allowed: task=curved needs a turning radius in "),
+    (("actions=bogus",), "actions=bogus is not allowed: one of maneuvers, targets"),
+    (("actions=targets", "reward=both"), "reward.use_continuous_action=True is not allowed: false with "
+                                         "actions=targets"),
+    (("actions=targets", "actions.cruise_speed=300"), "actions.cruise_speed=300.0 is not allowed: within "
+                                                      "simulation.limits [100.0, 250.0] m/s"),
+    (("actions=targets", "actions.lowest_altitude=600"), "actions.lowest_altitude=600.0 is not allowed: in (0.0, "
+                                                         "500.0) m"),
+    (("actions=targets", "actions.headings=1"), "actions.headings=1 is not allowed: an integer in [2, 360]"),
+    (("actions=targets", "actions.capture_fraction=0"), "actions.capture_fraction=0.0 is not allowed: (0, 1]"),
+    (("actions=targets", "actions.speed_time_constant=-1"), "actions.speed_time_constant=-1.0 is not allowed: > 0 s"),
 ])
 def test_guidance_parameters_refuse_overrides_as_the_command_line_does(overrides, message):
     # The README's `guidance_parameters("task=curved", ...)`: "overrides as on the command line", errors too.
     with pytest.raises(ConfigError) as raised:
         guidance_parameters(*overrides)
     assert str(raised.value).startswith(message) and "\n" not in str(raised.value)
+    with pytest.raises(ConfigError) as raised:  # the training config's own check, before a run starts
+        load_config(compose_checked(*overrides))
+    assert str(raised.value).startswith(message)
 
 
 def test_unknown_task_name_in_group_is_a_config_error():
@@ -458,27 +471,6 @@ def test_actions_default_to_the_papers_maneuvers_and_targets_reach_the_env():
     assert params.num_actions == 1 + 8 + (1 + 4) + 3  # hold, headings, 100 m and 1000..4000 m, speeds
     assert actions.autopilot(params.maneuvers).heading_time_constant == 3.0
     assert actions.autopilot(params.maneuvers).turn_load_factor == params.maneuvers.turn
-
-
-@pytest.mark.parametrize(("overrides", "message"), [
-    (("actions=bogus",), "actions=bogus is not allowed: one of maneuvers, targets"),
-    (("actions=targets", "reward=both"), "reward.use_continuous_action=True is not allowed: false with "
-                                         "actions=targets"),
-    (("actions=targets", "actions.cruise_speed=300"), "actions.cruise_speed=300.0 is not allowed: within "
-                                                      "simulation.limits [100.0, 250.0] m/s"),
-    (("actions=targets", "actions.lowest_altitude=600"), "actions.lowest_altitude=600.0 is not allowed: in (0.0, "
-                                                         "500.0) m"),
-    (("actions=targets", "actions.headings=1"), "actions.headings=1 is not allowed: an integer in [2, 360]"),
-    (("actions=targets", "actions.capture_fraction=0"), "actions.capture_fraction=0.0 is not allowed: (0, 1]"),
-    (("actions=targets", "actions.speed_time_constant=-1"), "actions.speed_time_constant=-1.0 is not allowed: > 0 s"),
-])
-def test_a_bad_action_set_is_one_line_naming_the_value(overrides, message):
-    with pytest.raises(ConfigError) as raised:
-        guidance_parameters(*overrides)
-    assert str(raised.value).startswith(message) and "\n" not in str(raised.value)
-    with pytest.raises(ConfigError) as raised:  # the training config's own check, before a run starts
-        load_config(compose_checked(*overrides))
-    assert str(raised.value).startswith(message)
 
 
 def test_a_saved_config_without_actions_flies_the_papers_maneuvers():

@@ -35,20 +35,13 @@ def _load(reference: str) -> tuple[Path, dict]:
         raise CheckpointError(f"method.baseline: {error}") from None
 
 
-def baseline_networks(cfg: Any) -> AgentConfig:
-    """``cfg.agent`` with B's layer widths and activation: the networks of a Z that starts from B's weights (B's
-    saved ``agent`` section; a file without one has ``cfg.agent``'s)."""
-    saved = _load(cfg.method.baseline)[1].get("config", {}).get("agent", {})
-    return dataclasses.replace(cfg.agent, **{key: saved[key] for key in NETWORK_KEYS if key in saved})
-
-
-def load_baseline(cfg: Any, device: torch.device | str, actor: ProbabilisticActor, critic: ValueOperator,
-                  start_from_it: bool):
-    """``(B, path, B's observation)`` for ``cfg.method.baseline``: B is the frozen baseline actor. With
-    ``start_from_it``, Z's ``actor`` and ``critic`` start from B's weights. A file that does not fit (unreadable,
-    another action set or target table, another observation, other network shapes) is a :class:`CheckpointError`
-    naming it."""
-    path, payload = _load(cfg.method.baseline)
+def load_baseline(cfg: Any, baseline: tuple[Path, dict], device: torch.device | str, actor: ProbabilisticActor,
+                  critic: ValueOperator, start_from_it: bool):
+    """``(B, path, B's observation)`` from ``baseline``, the file and payload ``cfg.method.baseline`` names: B is the
+    frozen baseline actor. With ``start_from_it``, Z's ``actor`` and ``critic`` start from B's weights. A file that
+    does not fit (another action set or target table, another observation, other network shapes) is a
+    :class:`CheckpointError` naming it."""
+    path, payload = baseline
     saved = payload.get("config", {})
     baseline_agent = saved.get("agent", {})
     observation = baseline_agent.get("observation", LEGACY_OBSERVATION)
@@ -89,24 +82,32 @@ class FromBaseline(Method):
     :meth:`starts_from_baseline`."""
 
     baseline_actor: ProbabilisticActor | None = None
+    _baseline_file: tuple[Path, dict] | None = None
 
     def starts_from_baseline(self) -> bool:
         return True
+
+    def baseline_file(self) -> tuple[Path, dict]:
+        """B's checkpoint file and payload, read once (an unreadable one is a one-line :class:`CheckpointError`)."""
+        if self._baseline_file is None:
+            self._baseline_file = _load(self.config.baseline)
+        return self._baseline_file
 
     @classmethod
     def check_inputs(cls, train_config: Any) -> None:
         params = to_guidance_parameters(train_config.task, train_config.reward, train_config.simulation,
                                         actions=train_config.actions)
         method = cls(train_config.method)
-        load_baseline(train_config, "cpu", *make_agent(method.agent_config(train_config), params, "cpu"),
-                      method.starts_from_baseline())
+        load_baseline(train_config, method.baseline_file(), "cpu",
+                      *make_agent(method.agent_config(train_config), params, "cpu"), method.starts_from_baseline())
 
     def agent_config(self, train_config: Any) -> AgentConfig:
         """B's layer widths and activation when Z starts from B's weights (:meth:`starts_from_baseline`): Z can
         only be B's networks then, whatever ``agent`` says (a difference is logged); else ``agent``'s."""
         if not self.starts_from_baseline():
             return train_config.agent
-        networks = baseline_networks(train_config)
+        saved = self.baseline_file()[1].get("config", {}).get("agent", {})  # a file without one: agent's widths
+        networks = dataclasses.replace(train_config.agent, **{key: saved[key] for key in NETWORK_KEYS if key in saved})
         if networks != train_config.agent:
             given = ", ".join(f"{key}={getattr(train_config.agent, key)}" for key in NETWORK_KEYS)
             log.info("method=%s: Z starts from B's weights, so it has B's networks (%s), not agent's (%s)",
@@ -115,4 +116,5 @@ class FromBaseline(Method):
 
     def start(self, trainer: Trainer) -> None:
         self.baseline_actor, self.baseline_path, self.baseline_observation = load_baseline(
-            trainer.cfg, trainer.device, trainer.actor, trainer.critic, self.starts_from_baseline())
+            trainer.cfg, self.baseline_file(), trainer.device, trainer.actor, trainer.critic,
+            self.starts_from_baseline())
