@@ -131,15 +131,19 @@ def test_fast_experiment_changes_only_the_measured_settings():
 
 
 def test_switch_schedule_experiment_fine_tunes_after_its_target_at_a_larger_cost():
-    """``+experiment=switch_schedule``: make train's stage 1 task and reward on the searched settings, then a
+    """``+experiment=switch_schedule`` (make train): the default task and reward on the searched settings, then a
     fine-tune in the same run at a larger switch cost; everything else stays the defaults."""
     schedule, default = dict(_leaves(load("+experiment=switch_schedule"))), dict(_leaves(load()))
     changed = {key for key, value in schedule.items() if default[key] != value}
     assert changed == {"agent.actor_hidden", "agent.critic_hidden", "ppo.learning_rate", "ppo.minibatch_size",
+                       "ppo.num_envs", "ppo.steps_per_env", "ppo.compile_loss",
                        "reward.switch_cost", "finetune.iterations", "finetune.switch_cost", "finetune.learning_rate",
                        "eval.interval", "eval.min_train_success", "eval.trajectory_image", "threads"}
     assert schedule["finetune.iterations"] > 0 and schedule["target_success"] > 0  # the target starts the fine-tune
     assert schedule["finetune.switch_cost"] > schedule["reward.switch_cost"]
+    # The same decisions per batch as the defaults, in fewer, wider env steps.
+    assert (schedule["ppo.num_envs"] * schedule["ppo.steps_per_env"]
+            == default["ppo.num_envs"] * default["ppo.steps_per_env"])
 
 
 def test_unknown_task_names_the_value():

@@ -8,7 +8,7 @@ import dataclasses
 import torch
 from omegaconf import OmegaConf
 
-from agrl.baselines import BASELINE_FILE
+from agrl.baselines import SHIPPED_AGENTS
 from agrl.config import RENAMED_KEYS, guidance_parameters, saved_guidance_parameters, upgraded_config
 from agrl.rl.checkpoint import load_checkpoint, save_checkpoint
 
@@ -41,7 +41,7 @@ def _today(*overrides: str) -> dict:
 
 
 def test_the_shipped_files_hold_the_old_keys_and_upgrade_to_the_composed_ones():
-    saved = torch.load(BASELINE_FILE, weights_only=True)["config"]
+    saved = torch.load(SHIPPED_AGENTS["baseline-two-stage"].file, weights_only=True)["config"]
     assert "c1" in saved["reward"] and "distance_tolerance" in saved["simulation"]  # what this upgrade is for
     upgraded = upgraded_config(saved)
     today = _today("+experiment=switch_finetune", "method.baseline=x")

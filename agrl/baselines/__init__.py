@@ -27,7 +27,8 @@ class ShippedAgent:
     description: str
     #: The commands that made it, in order. Agents other than ``baseline`` were trained by the code of their day,
     #: so these give an agent of the same recipe, not the same bytes (tests/baselines/test_make_train_recipe.py
-    #: checks that ``make train`` still composes the recipes of ``baseline`` and ``baseline-stage1`` exactly).
+    #: checks that ``make train`` and ``make train-two-stage`` still compose the recipes of ``baseline``,
+    #: ``baseline-two-stage`` and ``baseline-stage1`` exactly).
     made_by: tuple[str, ...]
 
     @property
@@ -46,16 +47,24 @@ class ShippedAgent:
 SHIPPED_AGENTS: dict[str, ShippedAgent] = {agent.name: agent for agent in (
     ShippedAgent(
         "baseline", "fixed_baseline.pt",
-        "the fixed-destination baseline B that method=pretrained and method=reuse start from: make train's two "
-        "stages (the position shaping term and a switch cost of 0.1, then a fine-tune at 0.3)",
+        "the fixed-destination baseline B that method=pretrained and method=reuse start from: make train, one run "
+        "of 2 x 64 networks with a switch-cost schedule (0.175 per instruction until 99.5 % success, then 60 "
+        "iterations at 0.38)",
         ("make train",
-         "python -m agrl.export <run>/stage2/checkpoints/latest.pt fixed_baseline.pt "
+         "python -m agrl.export <run>/checkpoints/latest.pt fixed_baseline.pt --evaluation <run>/eval/eval.json"),
+    ),
+    ShippedAgent(
+        "baseline-two-stage", "fixed_baseline_two_stage.pt",
+        "the shipped baseline until 2026-12-06 and the B of Tables 4-5: make train-two-stage (the position shaping "
+        "term and a switch cost of 0.1, then a fine-tune at 0.3; 2 x 128 networks)",
+        ("make train-two-stage",
+         "python -m agrl.export <run>/stage2/checkpoints/latest.pt fixed_baseline_two_stage.pt "
          "--evaluation <run>/stage2/eval/eval.json"),
     ),
     ShippedAgent(
         "baseline-stage1", "fixed_baseline_stage1.pt",
-        "make train's stage 1 alone (python -m agrl.train's defaults, seed 0): about 10 instructions per episode; "
-        "Table 3's fine-tuned row (make experiments-table3) starts from it",
+        "make train-two-stage's stage 1 alone (python -m agrl.train's defaults, seed 0): about 10 instructions "
+        "per episode; Table 3's fine-tuned row (make experiments-table3) starts from it",
         ("python -m agrl.train seed=0",
          "python -m agrl.export <run>/checkpoints/latest.pt fixed_baseline_stage1.pt "
          "--evaluation <run>/eval/eval.json"),

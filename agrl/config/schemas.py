@@ -183,7 +183,7 @@ class SearchConfig:
 class FinetuneConfig:
     """A switch-cost schedule in one run (not in the paper; docs/training.md): once a periodic evaluation reaches
     ``target_success``, the run trains ``iterations`` more PPO iterations at ``reward.switch_cost = switch_cost``
-    instead of stopping: ``make train``'s stage 2 without a second process."""
+    instead of stopping: a training and its fine-tune as one process (``make train``)."""
 
     iterations: int = MISSING  # PPO iterations after the target (0 = stop at the target)
     switch_cost: float = MISSING  # reward units per instruction during them

@@ -40,8 +40,8 @@ class CompiledLoss(torch.nn.Module):
 
     The same function as ``loss`` (to float rounding; ``tests/rl/test_ppo.py``). A minibatch of 512 rows is a
     few dozen small kernels and TensorDict bookkeeping in eager mode; compiled, the update is shorter in
-    ``python -m benchmarks.bench_peer``, for a compilation on the first minibatch, but ``make train`` as a whole was no
-    shorter with it (docs/results/history.md, "Benchmarks", commit 82c3f98), so it is off by default.
+    ``python -m benchmarks.bench_peer``, for a compilation on the first minibatch (kept by inductor's cache between
+    runs). ``make train``'s recipe uses it; the defaults do not (their results were measured eagerly).
     If compilation fails (no C++ compiler, an unsupported platform) it warns once and stays eager.
     """
 

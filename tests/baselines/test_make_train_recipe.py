@@ -1,7 +1,8 @@
-"""``make train`` trains the shipped baseline: its two commands compose exactly the configs the shipped files
-were trained with (docs/results/baseline.md). A change to the defaults, to ``conf/experiment/switch_finetune.yaml``
-or to the Makefile's ``FINETUNE_ARGS`` fails here until a retrained baseline is shipped with it (or the recipe is
-restored): otherwise ``make train`` would quietly stop reproducing the file."""
+"""``make train`` trains the shipped baseline, and ``make train-two-stage`` the one before it (Tables 4-5's B): their
+commands compose exactly the configs the shipped files were trained with (docs/results/baseline.md). A change to
+the defaults, to ``conf/experiment/switch_schedule.yaml`` or ``switch_finetune.yaml``, or to the Makefile's targets
+fails here until a retrained agent is shipped with it (or the recipe is restored): otherwise ``make train`` would
+quietly stop reproducing the file."""
 
 from __future__ import annotations
 
@@ -20,8 +21,10 @@ from agrl.core.parameters import ACTION_FIELDS
 from agrl.rl.metrics import flatten_config
 
 ROOT = Path(__file__).resolve().parents[2]
-#: make train's stage 1 as shipped (checkpoint=baseline-stage1), trained on the same defaults.
+#: make train-two-stage's stage 1 as shipped (checkpoint=baseline-stage1), trained on the same defaults.
 STAGE_ONE_FILE = SHIPPED_AGENTS["baseline-stage1"].file
+#: make train-two-stage's stage 2 (checkpoint=baseline-two-stage).
+TWO_STAGE_FILE = SHIPPED_AGENTS["baseline-two-stage"].file
 #: Set per invocation, not by the recipe: where the run starts from, whether a progress bar is drawn, and what the
 #: run returns to a sweeper (the search section changes nothing in training).
 NOT_THE_RECIPE = {"progress", "method.baseline", "search.success", "search.max_instructions", "search.penalty_seconds"}
@@ -63,13 +66,29 @@ def _makefile_finetune_args() -> list[str]:
     return shlex.split(match.group(1))
 
 
-def test_stage_one_is_the_defaults(compose_train):
+def _command_overrides(command: str) -> list[str]:
+    """The Hydra overrides of one ``python -m agrl.train`` command of a Makefile recipe, the per-invocation
+    ones (``hydra.*``, ``$(...)`` variables) left out."""
+    overrides = shlex.split(command.split(" -m agrl.train ", 1)[1])
+    return [item for item in overrides if not item.startswith("hydra.") and "$(" not in item]
+
+
+def test_make_train_is_one_run_of_the_shipped_recipe(compose_train):
+    (command,) = _makefile_recipe("train")
+    assert _command_overrides(command) == ["+experiment=switch_schedule"]
+    config = compose_train("+experiment=switch_schedule")
+    assert _differences(_recipe(dataclasses.asdict(config)), _saved(BASELINE_FILE)) == {}
+
+
+def test_two_stage_stage_one_is_the_defaults(compose_train):
     assert _differences(_recipe(dataclasses.asdict(compose_train())), _saved(STAGE_ONE_FILE)) == {}
 
 
-def test_stage_two_is_the_finetune_experiment_with_the_makefiles_arguments(compose_train):
+def test_two_stage_stage_two_is_the_finetune_experiment_with_the_makefiles_arguments(compose_train):
+    stage1, stage2 = _makefile_recipe("train-two-stage")
+    assert _command_overrides(stage1) == [] and _command_overrides(stage2) == ["+experiment=switch_finetune"]
     config = compose_train("+experiment=switch_finetune", "method.baseline=stage1", *_makefile_finetune_args())
-    assert _differences(_recipe(dataclasses.asdict(config)), _saved(BASELINE_FILE)) == {}
+    assert _differences(_recipe(dataclasses.asdict(config)), _saved(TWO_STAGE_FILE)) == {}
 
 
 def _makefile_recipe(target: str) -> list[str]:
@@ -89,28 +108,35 @@ def test_make_train_targets_composes_the_shipped_target_agents_recipe(compose_tr
     assert _differences(_recipe(dataclasses.asdict(config)), _saved(SHIPPED_AGENTS["baseline-targets"].file)) == {}
 
 
-def test_the_shipped_file_was_fine_tuned_from_a_stage_one_run():
-    saved = torch.load(BASELINE_FILE, weights_only=True)["config"]
+def test_the_two_stage_file_was_fine_tuned_from_a_stage_one_run():
+    saved = torch.load(TWO_STAGE_FILE, weights_only=True)["config"]
     assert saved["method"]["name"] == "pretrained"
     assert saved["method"]["baseline"].endswith("stage1")
 
 
+def test_the_shipped_file_was_trained_from_scratch_with_a_fine_tune_phase():
+    saved = torch.load(BASELINE_FILE, weights_only=True)["config"]
+    assert saved["method"]["name"] == "scratch"
+    assert saved["finetune"]["iterations"] > 0 and saved["finetune"]["switch_cost"] > saved["reward"]["switch_cost"]
+
+
 def _make_train_args(args: str) -> subprocess.CompletedProcess:
-    """``make train``'s first step alone: the check of ARGS, which runs before anything is installed or trained."""
+    """``make train-two-stage``'s first step alone: the check of ARGS, which runs before anything is installed or
+    trained."""
     return subprocess.run(["make", "--no-print-directory", "train-args", f"ARGS={args}"], cwd=ROOT,
                           capture_output=True, text=True, timeout=60)
 
 
 @pytest.mark.parametrize("args", ["task=uniform speed=50", "seed=2 method=reuse", "+experiment=fast",
                                   "agent.actor_hidden=[64,64]"])
-def test_make_train_refuses_arguments_stage_two_cannot_fine_tune(args):
+def test_make_train_two_stage_refuses_arguments_stage_two_cannot_fine_tune(args):
     result = _make_train_args(args)
     assert result.returncode != 0
     assert f"ARGS='{args}'" in result.stderr and "python -m agrl.train" in result.stderr
 
 
 @pytest.mark.parametrize("args", ["", "seed=3", "seed=3 ppo.learning_rate=1e-3 reward.switch_cost=0.2"])
-def test_make_train_accepts_other_stage_one_overrides(args):
+def test_make_train_two_stage_accepts_other_stage_one_overrides(args):
     assert _make_train_args(args).returncode == 0
 
 
@@ -140,6 +166,18 @@ def test_make_train_fast_fine_tunes_its_own_stage_one(compose_train):
     assert first.reward.name == second.reward.name == "switch" and not first.reward.use_continuous_action
     assert second.reward.switch_cost > first.reward.switch_cost
     assert first.ppo.compile_loss and second.ppo.compile_loss
+
+
+def test_make_train_passes_its_arguments_to_its_one_run():
+    (command,) = _dry_run_train_commands("train", "TRAIN_DIR=/tmp/agrl-train", "ARGS=seed=2")
+    assert command == ["+experiment=switch_schedule", "hydra.run.dir=/tmp/agrl-train", "seed=2"]
+
+
+def test_tables_4_and_5_are_reproduced_with_the_b_they_were_measured_with():
+    """docs/results/moving.md was measured with baseline-two-stage, the shipped baseline of the day."""
+    commands = _dry_run_train_commands("experiments-moving")
+    assert len(commands) == 5
+    assert all("method.baseline=baseline-two-stage" in command for command in commands)
 
 
 def test_make_train_fast_checks_its_arguments_first():
