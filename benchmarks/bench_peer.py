@@ -324,8 +324,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     load = os.getloadavg()[0]
     records = {}
     for trainer in args.trainers:
-        records[trainer] = TRAINERS[trainer](args.num_envs, args.steps, args.minibatch, args.iterations,
-                                             args.compile, args.seed, task)
+        records[trainer] = {**TRAINERS[trainer](args.num_envs, args.steps, args.minibatch, args.iterations,
+                                                args.compile, args.seed, task),
+                            "shape": f"{args.num_envs}x{args.steps}"}  # envs x decisions each, per iteration
         print(json.dumps(records[trainer]), flush=True)
     if "stable-baselines3" in records:
         for trainer in ("agrl", "agrl-compiled", "floor"):
