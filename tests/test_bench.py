@@ -151,7 +151,8 @@ def assert_peer_records(completed: subprocess.CompletedProcess, trainers: list[s
     assert [record["name"] for record in ratios] == [PEER_TRAINERS[name][1] for name in compared]
     assert [record["trainer"] for record in iterations] == [PEER_TRAINERS[name][0] for name in trainers]
     for record in iterations:
-        assert record["decisions_per_iteration"] == 128 and record["iterations_timed"] == 2 and record["shape"] == "16x8"
+        assert record["decisions_per_iteration"] == 128 and record["iterations_timed"] == 2
+        assert record["shape"] == "16x8"  # --num-envs x --steps
         assert 0 < record["collection_s"] and 0 < record["update_s"] and record["unit"] == "s/iteration"
     by_name = dict(zip(trainers, iterations, strict=True))
     sb3 = by_name["stable-baselines3"]
