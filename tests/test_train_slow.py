@@ -50,6 +50,19 @@ def test_methods_from_the_shipped_baseline_learn_uniform_20(tmp_path, run_cli, m
     assert evaluation["success_rate"] >= 0.95, evaluation
 
 
+def test_make_trains_recipe_reaches_its_target_then_fine_tunes(tmp_path, run_cli):
+    """``make train``'s one run (``+experiment=switch_schedule``), seed 0, at most 300 iterations (the shipped run
+    took 80 to its target, then its 60 of fine-tuning): it reaches its target, fine-tunes for exactly
+    ``finetune.iterations``, and ends near the shipped baseline (99.8-100 % at 6.8-7.2 instructions over 3 seeds,
+    docs/results/baseline.md)."""
+    evaluation = train_and_read_evaluation(run_cli, tmp_path / "run", "+experiment=switch_schedule", "seed=0",
+                                           f"ppo.total_frames={300 * ITERATION}", timeout_minutes=30)
+    log = (tmp_path / "run" / "train.log").read_text()
+    assert "fine-tuning for 60 iterations at switch cost 0.38" in log
+    assert "training stopped: fine-tuned for finetune.iterations=60" in log
+    assert evaluation["success_rate"] >= 0.99 and evaluation["instructions_per_episode"] <= 7.5, evaluation
+
+
 def test_fast_recipe_reaches_its_target_on_fresh_episodes(tmp_path, run_cli):
     """``python -m agrl.train +experiment=fast``, seed 0, at most 60 iterations (the measured runs took 30-34):
     it stops at its target, and its agent succeeds on >= 99.5 % of 10 000 episodes from seed 777, which neither
