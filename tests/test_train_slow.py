@@ -39,8 +39,8 @@ def test_default_recipe_learns_the_fixed_task(tmp_path, run_cli):
 
 
 @pytest.mark.parametrize(("method", "iterations"), [("pretrained", 10), ("reuse", 60)])
-def test_methods_from_the_shipped_baseline_learn_uniform_20(tmp_path, run_cli, method, iterations):
-    """Pre-trained and policy reuse from the shipped baseline on the uniform 20 m/s destination, seed 0,
+def test_methods_from_the_default_b_learn_uniform_20(tmp_path, run_cli, method, iterations):
+    """Pre-trained and policy reuse from the default B (baseline-two-stage) on the uniform 20 m/s destination, seed 0,
     stopping at 99 % periodic evaluation success or after ``iterations``: >= 95 % on 1000 episodes."""
     evaluation = train_and_read_evaluation(
         run_cli, tmp_path / "run", "task=uniform", "speed=20", f"method={method}", "seed=0", "target_success=0.99",

@@ -47,16 +47,17 @@ class ShippedAgent:
 SHIPPED_AGENTS: dict[str, ShippedAgent] = {agent.name: agent for agent in (
     ShippedAgent(
         "baseline", "fixed_baseline.pt",
-        "the fixed-destination baseline B that method=pretrained and method=reuse start from: make train, one run "
-        "of 2 x 64 networks with a switch-cost schedule (0.175 per instruction until 99.5 % success, then 60 "
-        "iterations at 0.38)",
+        "the shipped fixed-destination agent (Guide, evaluate and plan by default): make train, one run of 2 x 64 "
+        "networks with a switch-cost schedule (0.175 per instruction until 99.5 % success, then 60 iterations at "
+        "0.38)",
         ("make train",
          "python -m agrl.export <run>/checkpoints/latest.pt fixed_baseline.pt --evaluation <run>/eval/eval.json"),
     ),
     ShippedAgent(
         "baseline-two-stage", "fixed_baseline_two_stage.pt",
-        "the shipped baseline until 2026-12-06 and the B of Tables 4-5: make train-two-stage (the position shaping "
-        "term and a switch cost of 0.1, then a fine-tune at 0.3; 2 x 128 networks)",
+        "the baseline B that method=pretrained and method=reuse start from by default, Tables 4-5's, and the shipped "
+        "baseline until 2026-12-06: make train-two-stage (the position shaping term and a switch cost of 0.1, then "
+        "a fine-tune at 0.3; 2 x 128 networks)",
         ("make train-two-stage",
          "python -m agrl.export <run>/stage2/checkpoints/latest.pt fixed_baseline_two_stage.pt "
          "--evaluation <run>/stage2/eval/eval.json"),

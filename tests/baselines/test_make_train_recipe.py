@@ -180,6 +180,12 @@ def test_tables_4_and_5_are_reproduced_with_the_b_they_were_measured_with():
     assert all("method.baseline=baseline-two-stage" in command for command in commands)
 
 
+@pytest.mark.parametrize("method", ["pretrained", "reuse"])
+def test_the_methods_start_from_tables_4_and_5s_b_by_default(compose_train, method):
+    """Not make train's agent: it starts weaker on fast destinations (docs/results/baseline.md)."""
+    assert compose_train(f"method={method}").method.baseline == "baseline-two-stage"
+
+
 def test_make_train_fast_checks_its_arguments_first():
     dry_run = _dry_run("train-fast", "ARGS=task=uniform")
     assert "changes the task, method, experiment or networks" in dry_run
