@@ -47,7 +47,7 @@ train-fast: train-args install
 	$(PY) -m agrl.train +experiment=switch_finetune method.baseline=$(FAST_TRAIN_DIR)/stage1 $(FAST_NETWORKS) \
 	  ppo.compile_loss=true hydra.run.dir=$(FAST_TRAIN_DIR)/stage2 $(ARGS)
 
-# The shipped target-holding agent, baseline-targets (docs/results/action_sets.md): make train's two stages with
+# The shipped target-holding agent, baseline-targets (docs/results/action_sets.md): make train-two-stage's two stages with
 # actions=targets (heading, altitude and speed clearances flown by an autopilot; conf/actions/targets.yaml). Stage 1
 # trains from scratch at a switch cost of 0.1 until a periodic evaluation reaches 99.5 %, stage 2 fine-tunes it at 0.3
 # for 80 iterations; about 2.5 min on 2 cores, the shipped file bit for bit. ARGS: extra overrides for both stages

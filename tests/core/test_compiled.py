@@ -137,7 +137,7 @@ def test_the_least_recently_used_compilations_beyond_the_limit_are_removed(cache
 
 
 def test_each_thread_count_has_its_own_compilation(cache):
-    """torch's compilation guards the thread count its kernels were built for: make train's two stages run on two
+    """torch's compilation guards the thread count its kernels were built for: make train-two-stage's stages run on two
     and one threads, and neither may replace the other's file."""
     threads = torch.get_num_threads()
     try:
