@@ -230,8 +230,8 @@ class Trainer:
     def _set_learning_rate(self) -> float:
         ppo, finetune = self.cfg.ppo, self.cfg.finetune
         rate = finetune.learning_rate if self.counters.finetune_from and finetune.learning_rate else ppo.learning_rate
-        if ppo.anneal_lr:
-            rate = annealed_learning_rate(ppo.learning_rate, self.counters.frames, ppo.total_frames)
+        if ppo.anneal_lr:  # the rate in force (the fine-tune's, once it has begun), decayed with the frame budget
+            rate = annealed_learning_rate(rate, self.counters.frames, ppo.total_frames)
         for group in self.optimizer.param_groups:
             group["lr"] = rate
         return rate

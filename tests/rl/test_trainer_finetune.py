@@ -38,6 +38,18 @@ def test_the_target_starts_the_finetune_at_its_switch_cost_and_rate(tmp_path, co
     assert stops == ["training stopped: fine-tuned for finetune.iterations=3 at switch cost 0.5"]
 
 
+def test_an_annealed_rate_decays_the_finetunes_rate_once_it_has_begun(tmp_path, compose_train, tiny_args):
+    trainer = Trainer(compose_train(*tiny_args(FINETUNE), "method=pretrained", "ppo.anneal_lr=true"), tmp_path / "run")
+    trainer.train()
+    rows = read_metrics(tmp_path / "run")[1:]
+    total, start = FINETUNE["ppo.total_frames"], trainer.counters.finetune_from
+    assert start and len(rows) > start
+    for row in rows:  # a rate is set before its iteration's update, from the frames trained until then
+        initial = 1e-4 if row["train/iteration"] > start else trainer.cfg.ppo.learning_rate
+        frames_before = row["frames"] - 512
+        assert row["train/learning_rate"] == pytest.approx(initial * (1 - frames_before / total)), row
+
+
 def test_a_run_resumed_in_its_finetune_matches_an_uninterrupted_one_bitwise(tmp_path, compose_train, tiny_args,
                                                                              run_cli):
     straight = tmp_path / "straight"
