@@ -66,16 +66,9 @@ def _makefile_finetune_args() -> list[str]:
     return shlex.split(match.group(1))
 
 
-def _command_overrides(command: str) -> list[str]:
-    """The Hydra overrides of one ``python -m agrl.train`` command of a Makefile recipe, the per-invocation
-    ones (``hydra.*``, ``$(...)`` variables) left out."""
-    overrides = shlex.split(command.split(" -m agrl.train ", 1)[1])
-    return [item for item in overrides if not item.startswith("hydra.") and "$(" not in item]
-
-
 def test_make_train_is_one_run_of_the_shipped_recipe(compose_train):
-    (command,) = _makefile_recipe("train")
-    assert _command_overrides(command) == ["+experiment=switch_schedule"]
+    (command,) = _dry_run_train_commands("train", "TRAIN_DIR=/tmp/agrl-train")
+    assert command == ["+experiment=switch_schedule", "hydra.run.dir=/tmp/agrl-train"]
     config = compose_train("+experiment=switch_schedule")
     assert _differences(_recipe(dataclasses.asdict(config)), _saved(BASELINE_FILE)) == {}
 
@@ -85,8 +78,10 @@ def test_two_stage_stage_one_is_the_defaults(compose_train):
 
 
 def test_two_stage_stage_two_is_the_finetune_experiment_with_the_makefiles_arguments(compose_train):
-    stage1, stage2 = _makefile_recipe("train-two-stage")
-    assert _command_overrides(stage1) == [] and _command_overrides(stage2) == ["+experiment=switch_finetune"]
+    stage1, stage2 = _dry_run_train_commands("train-two-stage", "TWO_STAGE_DIR=/tmp/agrl-two")
+    assert stage1 == ["hydra.run.dir=/tmp/agrl-two/stage1"]
+    assert stage2[:3] == ["+experiment=switch_finetune", "method.baseline=/tmp/agrl-two/stage1",
+                          "hydra.run.dir=/tmp/agrl-two/stage2"] and stage2[3:] == _makefile_finetune_args()
     config = compose_train("+experiment=switch_finetune", "method.baseline=stage1", *_makefile_finetune_args())
     assert _differences(_recipe(dataclasses.asdict(config)), _saved(TWO_STAGE_FILE)) == {}
 
