@@ -13,6 +13,7 @@ paper's evaluation (:mod:`agrl.rl.evaluation`).
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import json
 import logging
@@ -79,7 +80,8 @@ class Trainer:
         self.params = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation, actions=cfg.actions)
         self.env, self.eval_env = self._make_envs()
         self.method = method_class(cfg.method.name)(cfg.method)  # an agrl.rl.methods.Method
-        cfg.agent = self.method.agent_config(cfg)  # pretrained: B's networks; checkpoints record what Z has
+        # Z's networks (pretrained: B's), which checkpoints record; in a copy, so the caller's config stays as given.
+        self.cfg = cfg = dataclasses.replace(cfg, agent=self.method.agent_config(cfg))
         self.actor, self.critic = make_agent(cfg.agent, self.params, self.device)
         self.method.start(self)
         self._make_ppo()

@@ -168,6 +168,7 @@ def test_pretrained_and_reuse_from_baseline_copy_its_weights(small_trainer, comp
     assert config.agent.actor_hidden == [128, 128]
     trainer = Trainer(config, tmp_path / "run")
     assert trainer.cfg.agent.actor_hidden == ([32] if copied else [128, 128])
+    assert config.agent.actor_hidden == [128, 128]  # the caller's config is not rewritten
     saved = load_checkpoint(baseline)
     for network, state in (("actor", trainer.actor.state_dict()), ("critic", trainer.critic.state_dict())):
         same = [name in saved[network] and torch.equal(value, saved[network][name]) for name, value in state.items()]
