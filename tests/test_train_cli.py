@@ -67,6 +67,12 @@ def test_tiny_run_writes_checkpoints_metrics_and_evaluation(tiny_run):
     assert "train/success_rate" not in rows[0] and rows[0]["wall_time"] == 0.0
     # Periodic evaluation every 2 iterations (eval.interval=2), training success every iteration.
     assert ["eval/success_rate" in row for row in rows] == [True, False, True, False, True]
+    # best.pt is the first iteration with the best periodic evaluation, and its counters record that success.
+    evaluations = {int(row["iteration"]): row["eval/success_rate"] for row in rows[1:] if "eval/success_rate" in row}
+    top = max(evaluations.values())
+    best = load_checkpoint(run / "checkpoints" / "best.pt")
+    assert best["counters"]["iteration"] == min(i for i, success in evaluations.items() if success == top)
+    assert best["counters"]["best_success"] == pytest.approx(top, abs=1e-6)
     # The last periodic evaluation is the final actor's on the fixed periodic set: evaluate it again here.
     assert rows[-1]["eval/success_rate"] == periodic_success_of(run / "checkpoints" / "latest.pt")
 

@@ -371,9 +371,10 @@ class Trainer:
                     log.info("%s: fine-tuning for %d iterations at switch cost %g", reason,
                              self.cfg.finetune.iterations, self.cfg.finetune.switch_cost)
                     reason = None
+            new_best = self._count_best(metrics)  # before the snapshot, which records the best success
             self._snapshot = self._state()
             self._log(metrics)
-            self._checkpoint(metrics)
+            self._checkpoint(new_best)
             bar.update(data.numel())
             bar.set_postfix(success=f"{metrics.get('train/success_rate', float('nan')):.3f}",
                             dps=f"{metrics['time/decisions_per_second']:.0f}")
@@ -391,12 +392,17 @@ class Trainer:
                 raise preempted
         return reason
 
-    def _checkpoint(self, metrics: dict[str, float]) -> None:
-        """``best`` on a new best periodic evaluation, ``latest`` every ``checkpoint_interval`` iterations."""
+    def _count_best(self, metrics: dict[str, float]) -> bool:
+        """Whether this iteration's periodic evaluation is the best so far (``counters.best_success`` follows)."""
         success = metrics.get("eval/success_rate")
-        if success is not None and success > self.counters.best_success:
-            self.counters.best_success = success
-            self._snapshot = self._state()
+        if success is None or success <= self.counters.best_success:
+            return False
+        self.counters.best_success = success
+        return True
+
+    def _checkpoint(self, new_best: bool) -> None:
+        """``best`` on a new best periodic evaluation, ``latest`` every ``checkpoint_interval`` iterations."""
+        if new_best:
             self.save("best", self._snapshot)
         if self.counters.iteration % self.cfg.checkpoint_interval == 0:
             self.save("latest", self._snapshot)
