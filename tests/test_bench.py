@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -35,7 +36,11 @@ BENCHMARK_RUNS = {
     "race": ("benchmarks.bench_race", "--budget-seconds", "2", "--eval-every", "1", "--eval-episodes", "8",
              "--max-decisions", "4", "--no-compile", "--threads", "1", "--sb3-geometry", "agrl", "--agrl-override",
              "ppo.num_envs=16", "ppo.steps_per_env=4", "ppo.minibatch_size=32"),
+    "profile": ("benchmarks.profile_iteration", "ppo.num_envs=16", "ppo.steps_per_env=8", "ppo.minibatch_size=64",
+                "simulation.compile=false", "threads=1", "--warmup", "1", "--iterations", "2", "--top", "5"),
 }
+#: The runs that do not need stable-baselines3.
+WITHOUT_SB3 = ("bench", "profile")
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +49,7 @@ def benchmark_runs(run_at_once) -> dict[str, subprocess.CompletedProcess]:
     import importlib.util
 
     names = [name for name in BENCHMARK_RUNS
-             if name == "bench" or importlib.util.find_spec("stable_baselines3") is not None]
+             if name in WITHOUT_SB3 or importlib.util.find_spec("stable_baselines3") is not None]
     return run_at_once({name: [sys.executable, "-m", *BENCHMARK_RUNS[name]] for name in names}, REPO, timeout=600)
 
 
@@ -78,6 +83,27 @@ def test_quick_run_prints_json_lines(benchmark_runs):
     assert [record["batch"] for record in records[2:]] == [8, 32, 8, 8, 8, 1]
     assert [record.get("actions") for record in records[4:6]] == ["maneuvers", "targets"]
     assert all(record["speedup_vs_reference"] > 0 for record in records[2:])
+
+
+def test_profile_lists_the_top_functions_of_each_phase(benchmark_runs):
+    completed = benchmark_runs["profile"]
+    assert completed.returncode == 0, completed.stderr
+    for phase in ("collection", "update"):
+        header = re.search(rf"^{phase}: ([0-9.]+) s per iteration \(median of 2\), ([0-9.]+) s profiled$",
+                           completed.stdout, re.MULTILINE)
+        assert header and float(header[1]) > 0 and float(header[2]) > 0, completed.stdout
+    rows = [line.split("|") for line in completed.stdout.splitlines() if line.startswith("| `")]
+    assert len(rows) == 2 * 5  # --top 5 per phase
+    assert all(int(row[2]) > 0 and 0 <= int(row[3].strip().removesuffix(" %")) <= 100 for row in rows)
+    assert "agrl/rl/trainer.py" in completed.stdout  # the update is the package's own Trainer.learn
+
+
+def test_profile_refuses_a_count_below_one(capsys):
+    from benchmarks.profile_iteration import main
+
+    with pytest.raises(SystemExit):
+        main(["--top", "0"])
+    assert "--top=0 is not allowed: a positive integer" in capsys.readouterr().err
 
 
 def test_arguments():
