@@ -49,7 +49,7 @@ SHIPPED_AGENTS: dict[str, ShippedAgent] = {agent.name: agent for agent in (
         "baseline", "fixed_baseline.pt",
         "the shipped fixed-destination agent (Guide, evaluate and plan by default): make train, one run of 2 x 64 "
         "networks with a switch-cost schedule (0.175 per instruction until 99.5 % success, then 60 iterations at "
-        "0.38)",
+        "0.38); as method=reuse's B at 20 m/s it needs method.selection_decay=1e-4 (docs/results/baseline.md)",
         ("make train",
          "python -m agrl.export <run>/checkpoints/latest.pt fixed_baseline.pt --evaluation <run>/eval/eval.json"),
     ),
