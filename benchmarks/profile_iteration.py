@@ -24,16 +24,11 @@ PHASES = ("collection", "update")
 
 
 def _where(key: tuple[str, int, str]) -> str:
-    """A function as ``path:line(name)``, the path from the package folder on (site-packages or the repository)."""
+    """A function as ``path:line(name)``, the path's last three parts (``agrl/rl/trainer.py``)."""
     path, line, name = key
     if path == "~":  # a built-in
         return name
-    parts = Path(path).parts
-    for root in ("site-packages", "main"):
-        if root in parts:
-            parts = parts[parts.index(root) + 1:]
-            break
-    return f"{'/'.join(parts[-3:])}:{line}({name})"
+    return f"{'/'.join(Path(path).parts[-3:])}:{line}({name})"
 
 
 def top_functions(profile: cProfile.Profile, count: int) -> list[tuple[str, int, float]]:
