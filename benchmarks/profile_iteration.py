@@ -34,7 +34,9 @@ def _where(key: tuple[str, int, str]) -> str:
 def top_functions(profile: cProfile.Profile, count: int) -> list[tuple[str, int, float]]:
     """The ``count`` functions with the most cumulative time: ``(where, calls, share of the profiled time)``."""
     stats = pstats.Stats(profile).stats
-    total = sum(own for _, _, own, _, _ in stats.values()) or 1.0
+    # The profiled time: the sum of every function's own time (at least the outermost call's cumulative time, which
+    # the profiler's rounding can put a little above that sum).
+    total = max(sum(own for _, _, own, _, _ in stats.values()), max(entry[3] for entry in stats.values()), 1e-9)
     ranked = sorted(stats.items(), key=lambda item: item[1][3], reverse=True)[:count]
     return [(_where(key), calls, cumulative / total) for key, (_, calls, _, cumulative, _) in ranked]
 
