@@ -62,10 +62,38 @@ def _resume_config(cfg: DictConfig, reference: str, requeued: bool = False) -> t
 
 
 def run(cfg: DictConfig) -> dict:
+    """Train one run, or with ``search.seeds`` > 1 one run per seed; the summary the command prints and returns."""
+    run_dir = Path(HydraConfig.get().runtime.output_dir)
+    if cfg.search.seeds == 1:
+        return _train(cfg, run_dir)
+    load_config(cfg)  # its one-line errors before the first seed's run
+    return _seeds_summary(cfg, run_dir)
+
+
+def _seeds_summary(cfg: DictConfig, run_dir: Path) -> dict:
+    """A trial of ``search.seeds`` runs, one after another, each in ``<run_dir>/seed_<n>``, summarised in
+    ``<run_dir>/trial.json``: each run's summary and the worst run's cost as the trial's. A requeued trial keeps the
+    runs that finished (their ``eval/eval.json``) and resumes the one it was pre-empted in."""
+    runs = {}
+    for seed in range(cfg.seed, cfg.seed + cfg.search.seeds):
+        seed_dir = run_dir / f"seed_{seed}"
+        finished = seed_dir / "eval" / "eval.json"
+        if finished.is_file():
+            log.info("%s finished before: its evaluation is kept", seed_dir)
+            runs[seed] = json.loads(finished.read_text())
+            continue
+        runs[seed] = _train(OmegaConf.merge(cfg, {"seed": seed, "search": {"seeds": 1}}), seed_dir)
+    worst = max(runs, key=lambda seed: runs[seed]["search_objective"])
+    summary = {"seeds": list(runs), "worst_seed": worst, "search_objective": runs[worst]["search_objective"],
+               "runs": {str(seed): runs[seed] for seed in runs}}
+    (run_dir / "trial.json").write_text(json.dumps(summary, indent=2) + "\n")
+    return summary
+
+
+def _train(cfg: DictConfig, run_dir: Path) -> dict:
     from agrl.rl.trainer import Trainer  # heavy imports after argument checks
 
     payload = None
-    run_dir = Path(HydraConfig.get().runtime.output_dir)
     if cfg.get("resume"):
         cfg, payload, run_dir = _resume_config(cfg, cfg.resume)
     elif (run_dir / "checkpoints" / PREEMPTED_MARKER).is_file():  # a requeued job, or the same command again
@@ -78,8 +106,7 @@ def run(cfg: DictConfig) -> dict:
     if payload is not None:
         log.info("resumed from %s after iteration %d (%d decisions)", payload["_path"],
                  payload["counters"]["iteration"], payload["counters"]["frames"])
-    summary = trainer.train()
-    return summary
+    return trainer.train()
 
 
 @hydra.main(version_base="1.3", config_path="pkg://agrl.conf", config_name="config")

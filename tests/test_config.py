@@ -227,6 +227,8 @@ def test_wrong_type_names_the_value():
         (("search.success=0",), "search.success=0.0"),
         (("search.max_instructions=-1",), "search.max_instructions=-1.0"),
         (("search.penalty_seconds=-60",), "search.penalty_seconds=-60.0"),
+        (("search.seeds=0",), "search.seeds=0"),
+        (("search.seeds=3", "resume=runs/x"), "search.seeds=3 is not allowed: 1 with resume"),
         (("finetune.iterations=-1",), "finetune.iterations=-1"),
         (("finetune.learning_rate=0",), "finetune.learning_rate=0.0"),
         (("finetune.iterations=20", "target_success=0"), "finetune.iterations=20 is not allowed: 0 when target_su"),

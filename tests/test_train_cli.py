@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 from PIL import Image
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
@@ -474,6 +475,36 @@ def test_a_resume_continues_in_its_run_directory_and_log(tiny_run, run_cli, tmp_
     assert f"resumed from {run / 'checkpoints' / 'latest.pt'} after iteration 4 (2048 decisions)" in appended
     assert f"training stopped: reached ppo.total_frames={frames}" in appended
     assert {path.name: path.read_bytes() for path in (run / ".hydra").iterdir()} == record
+
+
+def test_a_trial_of_several_seeds_trains_each_as_its_own_run_and_returns_the_worst(run_cli, tiny_args, tmp_path):
+    """search.seeds=2 trains seeds 1 and 2 one after another in one process, each exactly as its own run would be
+    (the second seed's agent and episodes equal a separate seed=2 run's), and returns the worse run's cost; the
+    same command again (a requeued trial) keeps the finished runs instead of training them again."""
+    trial, alone = tmp_path / "trial", tmp_path / "alone"
+    changes = {"ppo.total_frames": 1024, "eval.episodes": 8}
+    trial_command = ("train", *tiny_args({**changes, "seed": 1}), "search.seeds=2", f"hydra.run.dir={trial}")
+    results = run_cli.batch({"trial": trial_command,
+                             "alone": ("train", *tiny_args({**changes, "seed": 2}), f"hydra.run.dir={alone}")})
+    for result in results.values():
+        assert result.returncode == 0, result.stderr[-3000:]
+    record = json.loads((trial / "trial.json").read_text())
+    assert record["seeds"] == [1, 2]
+    runs = {seed: json.loads((trial / f"seed_{seed}" / "eval" / "eval.json").read_text()) for seed in (1, 2)}
+    assert [runs[seed]["seed"] for seed in (1, 2)] == [1, 2]
+    assert record["search_objective"] == max(run["search_objective"] for run in runs.values())
+    assert record["search_objective"] == runs[record["worst_seed"]]["search_objective"]
+    assert json.loads(results["trial"].stdout.strip().splitlines()[-1]) == record
+    assert ((trial / "seed_2" / "eval" / "episodes.csv").read_text()
+            == (alone / "eval" / "episodes.csv").read_text())
+    second, separate = (load_checkpoint(run / "checkpoints" / "latest.pt")["actor"]
+                        for run in (trial / "seed_2", alone))
+    assert all(torch.equal(second[key], separate[key]) for key in separate)
+
+    again = run_cli(*trial_command)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert again.stdout.count("finished before: its evaluation is kept") == 2
+    assert json.loads((trial / "trial.json").read_text()) == record
 
 
 @pytest.mark.usefixtures("torch_one_thread")

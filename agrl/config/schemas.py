@@ -167,13 +167,17 @@ class EvaluationConfig:
 class SearchConfig:
     """What ``python -m agrl.train`` returns to a Hydra sweeper (``+experiment=recipe_search``): seconds of training
     to an agent that meets ``success`` and ``max_instructions`` on the final evaluation, plus ``penalty_seconds``
-    per percentage point of success short and per instruction over (:func:`agrl.rl.evaluation.search_objective`)."""
+    per percentage point of success short and per instruction over (:func:`agrl.rl.evaluation.search_objective`);
+    with ``seeds`` > 1, the worst of that many runs (one per seed), so that a search favours a recipe that holds on
+    every seed rather than one seed's luck."""
 
     success: float = MISSING  # fraction of the final evaluation's episodes
     max_instructions: float = MISSING  # instructions per episode
     penalty_seconds: float = MISSING  # s per point of success short and per instruction over
+    seeds: int = MISSING  # runs per trial (seed, seed + 1, ...): the trial's cost is its worst run's
 
     def __post_init__(self) -> None:
+        require(self.seeds >= 1, "search.seeds", self.seeds, ">= 1")
         require(0 < self.success <= 1, "search.success", self.success, "in (0, 1]")
         require(self.max_instructions > 0, "search.max_instructions", self.max_instructions, "> 0")
         require(self.penalty_seconds >= 0, "search.penalty_seconds", self.penalty_seconds, ">= 0 s")
@@ -248,6 +252,8 @@ class TrainConfig:
         workers = self.ppo.collector_workers
         require(workers == 1 or not self.resume, "ppo.collector_workers", workers,
                  "1 with resume (exact resume needs the single in-process collector's carried rows)")
+        require(self.search.seeds == 1 or not self.resume, "search.seeds", self.search.seeds,
+                 "1 with resume (resume one seed's run, <trial>/seed_<n>)")
         if self.finetune.iterations:
             require(self.target_success > 0, "finetune.iterations", self.finetune.iterations,
                      "0 when target_success=0 (the fine-tune starts when a run reaches target_success)")
