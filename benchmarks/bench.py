@@ -56,6 +56,7 @@ from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.parameters import GuidanceParameters
 from agrl.core.simulation import DecisionSimulator
 from agrl.envs.gym import gym_parameters
+from agrl.machine import cpu_model
 from agrl.reference import reference_decision
 
 FULL_BATCH_SIZES = (1024, 4096, 16384)
@@ -302,17 +303,6 @@ def bench_guide(kind: str, batch: int, repeats: int, min_seconds: float) -> list
 
 
 # ---------------------------------------------------------------------------- machine and CLI
-def _cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo") as cpuinfo:
-            for line in cpuinfo:
-                if line.lower().startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
 def _ram_gib() -> float | None:
     try:
         return round(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30, 1)
@@ -326,7 +316,7 @@ def machine_record(device: torch.device) -> dict:
         "name": "machine",
         "value": torch.get_num_threads(),
         "unit": "torch threads",
-        "cpu": _cpu_model(),
+        "cpu": cpu_model(),
         "cpu_count": os.cpu_count(),
         "ram_gib": _ram_gib(),
         "torch": torch.__version__,

@@ -24,6 +24,7 @@ LAYERS = {
     "agrl.reference": 1,  # the pure-Python one-row simulator (single gym env, test oracle, benchmark baseline)
     "agrl.rows": 1,  # the pure-Python one-row observation and reward (single gym env, single-query guide)
     "agrl.plots": 1,  # figures from plain records
+    "agrl.machine": 1,  # the processor and threads a run's results were made with
     "agrl.config": 1,  # Hydra structured schemas, composition, and the core records built from them by name
     "agrl.envs": 2,  # TorchRL and gymnasium environments
     "agrl.rl": 3,  # actor-critic, PPO trainer, checkpoints, evaluation, policy reuse

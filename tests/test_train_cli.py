@@ -100,6 +100,10 @@ def test_tiny_run_prints_json_summary_on_last_line(tiny_run):
     for key in ("success_rate", "instructions_per_episode", "ms_per_instruction", "outcomes"):
         assert key in summary
     assert summary["ms_per_instruction"] > 0
+    # The processor path and threads it was trained with: a run repeats bit for bit only on the same ones.
+    machine = summary["machine"]
+    assert (machine["cpu_capability"], machine["torch"]) == (torch.backends.cpu.get_cpu_capability(), torch.__version__)
+    assert machine["cpu"] and isinstance(machine["threads"], int) and machine["threads"] >= 1
     # What a sweeper reads (the config's search section): this untrained run misses 99.5 %, so it pays 60 s per
     # point of success short (and per instruction over 7) on top of its seconds of training.
     short, over = 100 * max(0.0, 0.995 - summary["success_rate"]), max(0.0, summary["instructions_per_episode"] - 7)

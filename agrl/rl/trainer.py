@@ -31,6 +31,7 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 
 from agrl.config import TrainConfig, method_class, task_label, to_guidance_parameters
 from agrl.envs.guidance import GuidanceEnv
+from agrl.machine import processor_record
 from agrl.plots import plot_trajectories, trajectory_image
 from agrl.rl.checkpoint import CheckpointError, load_module_state, save_checkpoint
 from agrl.rl.curriculum import SharedScaleGuidanceEnv, promoted_scale, shared_scale, start_distribution
@@ -436,6 +437,7 @@ class Trainer:
             "task": self.cfg.task.name, "method": self.cfg.method.name, "reward": self.cfg.reward.name,
             "seed": self.cfg.seed, "evaluation_seed": self.eval_seed, "iterations": self.counters.iteration,
             "decisions_trained": self.counters.frames, "training_wall_time_s": round(self.counters.wall_time, 1),
+            "machine": processor_record(),  # a run repeats bit for bit on the same processor path and threads only
         })
         search = self.cfg.search
         summary["search_objective"] = search_objective(summary, search.success, search.max_instructions,
