@@ -27,7 +27,8 @@ STAGE_ONE_FILE = SHIPPED_AGENTS["baseline-stage1"].file
 TWO_STAGE_FILE = SHIPPED_AGENTS["baseline-two-stage"].file
 #: Set per invocation, not by the recipe: where the run starts from, whether a progress bar is drawn, and what the
 #: run returns to a sweeper (the search section changes nothing in training).
-NOT_THE_RECIPE = {"progress", "method.baseline", "search.success", "search.max_instructions", "search.penalty_seconds"}
+NOT_THE_RECIPE = {"progress", "method.baseline", "search.success", "search.max_instructions", "search.penalty_seconds",
+                  "search.seeds"}
 #: Options added after the shipped files were trained, at the value that trains exactly as before: a file without
 #: the key was trained with that value. Any other value of such an option is still a difference.
 #: ``eval.confirm_episodes``: stage 1's confirmation holds where its periodic evaluation stopped it (``make train``
