@@ -48,10 +48,20 @@ SHIPPED_AGENTS: dict[str, ShippedAgent] = {agent.name: agent for agent in (
     ShippedAgent(
         "baseline", "fixed_baseline.pt",
         "the shipped fixed-destination agent (Guide, evaluate and plan by default): make train, one run of 2 x 64 "
-        "networks with a switch-cost schedule (0.175 per instruction until 99.5 % success, then 60 iterations at "
-        "0.38); as method=reuse's B at 20 m/s it needs method.selection_decay=1e-4 (docs/results/baseline.md)",
+        "networks with a switch-cost schedule (0.104 per instruction until 99.8 % success, then 60 iterations at "
+        "0.449), the three-seed recipe search's best (docs/results/baseline.md)",
         ("make train",
          "python -m agrl.export <run>/checkpoints/latest.pt fixed_baseline.pt --evaluation <run>/eval/eval.json"),
+    ),
+    ShippedAgent(
+        "baseline-first-search", "fixed_baseline_first_search.pt",
+        "the shipped baseline of 2026-12-06 before this one: make train's recipe then, the best trial of a "
+        "one-seed recipe search (0.175 per instruction until 99.5 % success, then 60 iterations at 0.38); as "
+        "method=reuse's B at 20 m/s it needs method.selection_decay=1e-4 (docs/results/baseline.md)",
+        ("python -m agrl.train +experiment=switch_schedule ppo.learning_rate=1.83e-3 reward.switch_cost=0.175 "
+         "target_success=0.995 finetune.switch_cost=0.38 finetune.learning_rate=1.4e-3",
+         "python -m agrl.export <run>/checkpoints/latest.pt fixed_baseline_first_search.pt "
+         "--evaluation <run>/eval/eval.json"),
     ),
     ShippedAgent(
         "baseline-two-stage", "fixed_baseline_two_stage.pt",

@@ -1,4 +1,4 @@
-"""``make train`` trains the shipped baseline, and ``make train-two-stage`` the one before it (Tables 4-5's B): their
+"""``make train`` trains the shipped baseline, and ``make train-two-stage`` Tables 4-5's B: their
 commands compose exactly the configs the shipped files were trained with (docs/results/baseline.md). A change to
 the defaults, to ``conf/experiment/switch_schedule.yaml`` or ``switch_finetune.yaml``, or to the Makefile's targets
 fails here until a retrained agent is shipped with it (or the recipe is restored): otherwise ``make train`` would
@@ -72,6 +72,16 @@ def test_make_train_is_one_run_of_the_shipped_recipe(compose_train):
     assert command == ["+experiment=switch_schedule", "hydra.run.dir=/tmp/agrl-train"]
     config = compose_train("+experiment=switch_schedule")
     assert _differences(_recipe(dataclasses.asdict(config)), _saved(BASELINE_FILE)) == {}
+
+
+def test_the_previous_baselines_command_composes_its_recipe(compose_train):
+    """``baseline-first-search`` was make train's agent before the recipe changed; its listed command, the
+    recipe of today with the values of then on the command line, composes the config it was trained with."""
+    agent = SHIPPED_AGENTS["baseline-first-search"]
+    command = shlex.split(agent.made_by[0])
+    assert command[:3] == ["python", "-m", "agrl.train"]
+    config = compose_train(*command[3:])
+    assert _differences(_recipe(dataclasses.asdict(config)), _saved(agent.file)) == {}
 
 
 def test_two_stage_stage_one_is_the_defaults(compose_train):

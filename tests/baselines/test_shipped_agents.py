@@ -20,9 +20,10 @@ from agrl.rl.checkpoint import CheckpointError, load_checkpoint, resolve_checkpo
 from agrl.rl.evaluation import run_episodes, summarise
 
 NAMES = list(SHIPPED_AGENTS)
-ALLOWED = "baseline, baseline-two-stage, baseline-stage1, baseline-both-terms, baseline-targets, baseline-absolute"
+ALLOWED = ("baseline, baseline-first-search, baseline-two-stage, baseline-stage1, "
+           "baseline-both-terms, baseline-targets, baseline-absolute")
 #: The input each agent's network reads.
-OBSERVATIONS = {"baseline": "relative", "baseline-two-stage": "relative",
+OBSERVATIONS = {"baseline": "relative", "baseline-first-search": "relative", "baseline-two-stage": "relative",
                 "baseline-stage1": "relative", "baseline-both-terms": "relative",
                 "baseline-targets": "relative", "baseline-absolute": "absolute"}
 #: The actions each agent gives (conf/actions).
