@@ -137,7 +137,8 @@ def test_switch_schedule_experiment_fine_tunes_after_its_target_at_a_larger_cost
     changed = {key for key, value in schedule.items() if default[key] != value}
     assert changed == {"agent.actor_hidden", "agent.critic_hidden", "ppo.learning_rate", "ppo.minibatch_size",
                        "ppo.num_envs", "ppo.steps_per_env", "ppo.compile_loss",
-                       "reward.switch_cost", "finetune.iterations", "finetune.switch_cost", "finetune.learning_rate",
+                       "reward.switch_cost", "target_success", "finetune.iterations", "finetune.switch_cost",
+                       "finetune.learning_rate",
                        "eval.interval", "eval.min_train_success", "eval.trajectory_image", "threads"}
     assert schedule["finetune.iterations"] > 0 and schedule["target_success"] > 0  # the target starts the fine-tune
     assert schedule["finetune.switch_cost"] > schedule["reward.switch_cost"]

@@ -53,8 +53,8 @@ def cli_runs(tiny_run, run_cli, tmp_path_factory):
 #: Bad command lines and what their one-line error must say: {case: (arguments, fragments of the line)}.
 ONE_LINE_ERRORS = {
     "no-checkpoint": ((), ("checkpoint is required", "a run directory, or a shipped agent (baseline, "
-                           "baseline-two-stage, baseline-stage1, baseline-both-terms, baseline-targets, "
-                           "baseline-absolute)")),
+                           "baseline-first-search, baseline-two-stage, baseline-stage1, baseline-both-terms, "
+                           "baseline-targets, baseline-absolute)")),
     "speed-without-task": (("checkpoint=baseline", "speed=50"),
                            ("speed=50.0 is not allowed without task=", "give task=uniform or curved")),
     "task-foo": (("checkpoint=baseline", "task=foo"), ("task=foo is not allowed: one of curved, fixed",)),

@@ -79,7 +79,8 @@ def test_a_missing_source_is_one_line(exported):
     lines = [line for line in result.stderr.splitlines() if line.strip()]
     assert lines == [f"agrl.export: error: {exported['directory'] / 'missing.pt'}: no such checkpoint file or run "
                      "directory; allowed: a checkpoint file, a run directory, or a shipped agent (baseline, "
-                     "baseline-two-stage, baseline-stage1, baseline-both-terms, baseline-targets, baseline-absolute)"]
+                     "baseline-first-search, baseline-two-stage, baseline-stage1, baseline-both-terms, "
+                     "baseline-targets, baseline-absolute)"]
     assert not (exported["directory"] / "never.pt").exists()
 
 

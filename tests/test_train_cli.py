@@ -316,8 +316,9 @@ ONE_LINE_ERRORS = {
     "sweep-without-m": (("seed=0,1",), ("seed=0,1 is not allowed: a sweep needs -m",)),
     "missing-baseline": (("method=pretrained", "method.baseline=no/such.pt"),
                          ("method.baseline: no/such.pt: no such checkpoint file or run directory; allowed: a "
-                          "checkpoint file, a run directory, or a shipped agent (baseline, baseline-two-stage, "
-                          "baseline-stage1, baseline-both-terms, baseline-targets, baseline-absolute)",)),
+                          "checkpoint file, a run directory, or a shipped agent (baseline, baseline-first-search, "
+                          "baseline-two-stage, baseline-stage1, baseline-both-terms, baseline-targets, "
+                          "baseline-absolute)",)),
     "resume-missing": (("resume=no/such/run",), ("resume: no/such/run: no such checkpoint file or run directory",)),
     "resume-shipped-agent": (("resume=baseline",),
                              ("resume=baseline is not allowed: baseline is a shipped agent, not a training run",
@@ -437,8 +438,8 @@ def test_reuse_without_a_baseline_is_one_line(bad_runs):
     line = single_error_line(bad_runs["reuse-without-baseline"], 2)
     assert line == ("agrl.train: error: method.baseline=None is not allowed: "
                     "method=reuse needs a baseline checkpoint (a path, or a shipped agent: baseline, "
-                    "baseline-two-stage, baseline-stage1, baseline-both-terms, baseline-targets, "
-                    "baseline-absolute)")
+                    "baseline-first-search, baseline-two-stage, baseline-stage1, baseline-both-terms, "
+                    "baseline-targets, baseline-absolute)")
 
 
 def test_candidate_stride_beyond_the_decision_budget_is_one_line(bad_runs):
