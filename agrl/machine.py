@@ -9,9 +9,11 @@ import platform
 import torch
 
 
-def cpu_model() -> str:
-    """The processor's model name (``/proc/cpuinfo``), else what :mod:`platform` knows."""
-    return _cpuinfo().get("model name") or platform.processor() or platform.machine()
+def cpu_model(cpuinfo: dict[str, str] | None = None) -> str:
+    """The processor's model name (``/proc/cpuinfo``, or its fields already read), else what :mod:`platform`
+    knows."""
+    cpuinfo = _cpuinfo() if cpuinfo is None else cpuinfo
+    return cpuinfo.get("model name") or platform.processor() or platform.machine()
 
 
 def processor_record() -> dict[str, str | int]:
@@ -19,7 +21,7 @@ def processor_record() -> dict[str, str | int]:
     apart processors sold under one name), the instruction set torch's kernels use here, torch and its threads."""
     info = _cpuinfo()
     return {
-        "cpu": cpu_model(),
+        "cpu": cpu_model(info),
         "cpu_family_model": f"{info['cpu family']}/{info['model']}" if "cpu family" in info else "",
         "cpu_capability": torch.backends.cpu.get_cpu_capability(),
         "torch": torch.__version__,

@@ -56,7 +56,7 @@ from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.parameters import GuidanceParameters
 from agrl.core.simulation import DecisionSimulator
 from agrl.envs.gym import gym_parameters
-from agrl.machine import cpu_model
+from agrl.machine import processor_record
 from agrl.reference import reference_decision
 
 FULL_BATCH_SIZES = (1024, 4096, 16384)
@@ -316,10 +316,9 @@ def machine_record(device: torch.device) -> dict:
         "name": "machine",
         "value": torch.get_num_threads(),
         "unit": "torch threads",
-        "cpu": cpu_model(),
+        **processor_record(),  # the processor, torch's kernel path, torch and its threads
         "cpu_count": os.cpu_count(),
         "ram_gib": _ram_gib(),
-        "torch": torch.__version__,
         "python": platform.python_version(),
         "device": str(device),
         "load_average_1min": round(load[0], 2),  # ~0 on an otherwise idle machine

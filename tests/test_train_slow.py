@@ -71,7 +71,7 @@ def test_make_trains_recipe_reaches_its_target_then_fine_tunes(tmp_path, run_cli
     evaluation = train_and_read_evaluation(run_cli, tmp_path / "run", "+experiment=switch_schedule", "seed=0",
                                            f"ppo.total_frames={300 * ITERATION}", timeout_minutes=30)
     log = (tmp_path / "run" / "train.log").read_text()
-    assert f"fine-tuning for {finetune.iterations} iterations at switch cost {finetune.switch_cost:g}" in log
+    assert f"fine-tuning for {finetune.iterations} iterations at switch cost {finetune.switch_cost}" in log
     assert f"training stopped: fine-tuned for finetune.iterations={finetune.iterations}" in log
     assert evaluation["success_rate"] >= 0.99 and evaluation["instructions_per_episode"] <= 7.5, evaluation
 

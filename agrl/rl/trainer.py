@@ -369,7 +369,7 @@ class Trainer:
                 if reason and self.cfg.finetune.iterations:  # before the snapshot: a resume finds the phase begun
                     self.counters.finetune_from = self.counters.iteration
                     self._set_switch_cost(self.cfg.finetune.switch_cost)
-                    log.info("%s: fine-tuning for %d iterations at switch cost %g", reason,
+                    log.info("%s: fine-tuning for %d iterations at switch cost %s", reason,
                              self.cfg.finetune.iterations, self.cfg.finetune.switch_cost)
                     reason = None
             new_best = self._count_best(metrics)  # before the snapshot, which records the best success
