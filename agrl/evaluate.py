@@ -67,7 +67,7 @@ def evaluate(cfg) -> dict[str, Any]:
     params = saved_guidance_parameters(saved, task)
     observation = saved_agent_config(saved).observation
     env = GuidanceEnv(params, num_envs=cfg.episodes, device=device, seed=cfg.seed, observation=observation)
-    records = run_episodes(env, actor, record_trajectories=cfg.trajectories > 0)
+    records = run_episodes(env, actor, trajectories=cfg.trajectories)
     summary = summarise(records)
     summary["ms_per_instruction"] = instruction_latency_ms(env, actor)
     summary.update({"checkpoint": str(path), "task": task.name, "speed": task.speed, "radius": task.radius,

@@ -21,6 +21,9 @@ OUTCOME_COLOURS = {
     Outcome.RUNNING: "tab:gray",
 }
 
+#: Episodes a trajectory figure draws by default (the first ones of an evaluation).
+DRAWN_EPISODES = 10
+
 
 def _draw_airspace_box(axes, airspace: Airspace) -> None:
     """The edges of equation 1's box, in km, and axis limits on it."""
@@ -62,13 +65,13 @@ def _outcome_legend(axes) -> None:
     axes.legend(handles=handles, loc="upper left", fontsize=8)
 
 
-def trajectory_figure(records, airspace: Airspace, count: int = 10, title: str = ""):
+def trajectory_figure(records, airspace: Airspace, count: int = DRAWN_EPISODES, title: str = ""):
     """The figure of :func:`plot_trajectories` (a matplotlib ``Figure``; close it with ``plt.close``)."""
     if records.trajectory_aircraft is None:
-        raise ValueError("records carry no trajectories: run_episodes(..., record_trajectories=True)")
+        raise ValueError("records carry no trajectories: run_episodes(..., trajectories=<episodes>)")
     figure = plt.figure(figsize=(8, 6.5))
     axes = figure.add_subplot(projection="3d")
-    count = min(count, records.outcome.numel())
+    count = min(count, records.trajectory_aircraft.shape[0])
     for index in range(count):
         length = int(records.decisions[index]) + 1
         _draw_episode(axes, records.trajectory_aircraft[index, :length].tolist(),
@@ -79,7 +82,7 @@ def trajectory_figure(records, airspace: Airspace, count: int = 10, title: str =
     return figure
 
 
-def plot_trajectories(records, path: str | Path, airspace: Airspace, count: int = 10,
+def plot_trajectories(records, path: str | Path, airspace: Airspace, count: int = DRAWN_EPISODES,
                       title: str = "") -> Path:
     """Aircraft paths (coloured by outcome) and destination paths (black) of the first ``count`` episodes, in km."""
     figure = trajectory_figure(records, airspace, count, title)
@@ -100,7 +103,7 @@ def figure_to_array(figure, close: bool = True) -> np.ndarray:
     return image
 
 
-def trajectory_image(records, airspace: Airspace, count: int = 10, title: str = "") -> np.ndarray:
+def trajectory_image(records, airspace: Airspace, count: int = DRAWN_EPISODES, title: str = "") -> np.ndarray:
     """:func:`plot_trajectories`' figure as an ``(H, W, 3)`` uint8 array (no file written)."""
     return figure_to_array(trajectory_figure(records, airspace, count, title))
 

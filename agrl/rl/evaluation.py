@@ -28,7 +28,8 @@ from agrl.envs.guidance import GuidanceEnv
 
 @dataclass
 class EpisodeRecords:
-    """One row per episode; ``trajectory_*`` are ``(episodes, steps + 1, ...)`` when recorded."""
+    """One row per episode; ``trajectory_*`` are ``(traced episodes, steps + 1, ...)`` when recorded (the first
+    episodes' paths, :func:`run_episodes`' ``trajectories``)."""
 
     initial_aircraft_state: torch.Tensor
     outcome: torch.Tensor
@@ -42,32 +43,37 @@ class EpisodeRecords:
 
 @torch.no_grad()
 def run_episodes(
-    env: GuidanceEnv, actor, record_trajectories: bool = False, reset: TensorDictBase | None = None
+    env: GuidanceEnv, actor, trajectories: int = 0, reset: TensorDictBase | None = None
 ) -> EpisodeRecords:
     """Run one episode per env row with the actor's deterministic (argmax) action.
 
     Rows keep being stepped after they finish (the batch moves together), but only
-    each row's first episode is recorded.
+    each row's first episode is recorded. ``trajectories``: how many episodes (the first rows) also keep their
+    path, state by state (what a trajectory figure draws; every path of a large evaluation would cost
+    hundreds of megabytes).
     """
+    if trajectories < 0:
+        raise ValueError(f"trajectories={trajectories}: the number of episodes whose paths are kept, >= 0")
     td = env.reset(reset) if reset is not None else env.reset()
     count = env.batch_size.numel()
     device = env.device
+    traced = min(trajectories, count)
     initial = td["aircraft_state"].clone()
     # Each row's state at the end of its first episode; the env itself counts decisions, instructions, return.
     final_keys = ("aircraft_state", "destination_state", "outcome", "step_count", "instruction_count", "episode_return")
     final = td.select(*final_keys).clone()
     running = torch.ones(count, dtype=torch.bool, device=device)
-    aircraft_path = [td["aircraft_state"].clone()] if record_trajectories else None
-    destination_path = [td["destination_state"].clone()] if record_trajectories else None
+    aircraft_path = [td["aircraft_state"][:traced].clone()]
+    destination_path = [td["destination_state"][:traced].clone()]
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         for _ in range(env.params.max_decisions):
             td = env.step(actor(td))
             step = td["next"]
-            if record_trajectories:
-                aircraft_path.append(torch.where(running[:, None], step["aircraft_state"], aircraft_path[-1]))
-                destination_path.append(
-                    torch.where(running[:, None], step["destination_state"], destination_path[-1])
-                )
+            if traced:
+                moving = running[:traced, None]
+                aircraft_path.append(torch.where(moving, step["aircraft_state"][:traced], aircraft_path[-1]))
+                destination_path.append(torch.where(moving, step["destination_state"][:traced],
+                                                    destination_path[-1]))
             finished = running & step["done"].squeeze(-1)
             final = step.select(*final_keys).where(finished, final)
             running &= ~finished
@@ -82,8 +88,8 @@ def run_episodes(
         instructions=final["instruction_count"].cpu(),
         episode_return=final["episode_return"].cpu(),
         final_distance=relative.norm(dim=-1).cpu(),
-        trajectory_aircraft=torch.stack(aircraft_path, 1).cpu() if record_trajectories else None,
-        trajectory_destination=torch.stack(destination_path, 1).cpu() if record_trajectories else None,
+        trajectory_aircraft=torch.stack(aircraft_path, 1).cpu() if traced else None,
+        trajectory_destination=torch.stack(destination_path, 1).cpu() if traced else None,
     )
 
 

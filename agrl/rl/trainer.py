@@ -32,7 +32,7 @@ from torchrl.data import LazyTensorStorage, TensorDictReplayBuffer
 from agrl.config import TrainConfig, method_class, task_label, to_guidance_parameters
 from agrl.envs.guidance import GuidanceEnv
 from agrl.machine import processor_record
-from agrl.plots import plot_trajectories, trajectory_image
+from agrl.plots import DRAWN_EPISODES, plot_trajectories, trajectory_image
 from agrl.rl.checkpoint import CheckpointError, load_module_state, save_checkpoint
 from agrl.rl.curriculum import SharedScaleGuidanceEnv, promoted_scale, shared_scale, start_distribution
 from agrl.rl.evaluation import instruction_latency_ms, run_episodes, search_objective, summarise, write_evaluation
@@ -281,22 +281,22 @@ class Trainer:
         return (self.counters.curriculum_scale >= 1.0 and success is not None
                 and success >= self.cfg.eval.min_train_success)
 
-    def evaluate(self, episodes: int | None = None, record_trajectories: bool = False,
+    def evaluate(self, episodes: int | None = None, trajectories: int = 0,
                  seed: int | None = None) -> tuple[dict[str, Any], Any]:
         """``episodes`` deterministic episodes (default: the periodic set's size) drawn from ``seed`` (default:
-        :attr:`eval_seed`): the same episodes at every call."""
+        :attr:`eval_seed`): the same episodes at every call; the first ``trajectories`` keep their paths."""
         env = self.eval_env
         if episodes is not None and episodes != env.batch_size[0]:
             env = GuidanceEnv(self.params, num_envs=episodes, device=self.device, seed=self.eval_seed,
                               observation=self.cfg.agent.observation)
         env.set_seed(self.eval_seed if seed is None else seed)
-        records = run_episodes(env, self.actor, record_trajectories=record_trajectories)
+        records = run_episodes(env, self.actor, trajectories=trajectories)
         return summarise(records), records
 
     def _periodic_evaluation(self) -> dict[str, float]:
         """The fixed periodic episode set; its first episodes' trajectories also go to the dashboard's Images."""
         picture = self.cfg.eval.trajectory_image
-        evaluation, records = self.evaluate(record_trajectories=picture)
+        evaluation, records = self.evaluate(trajectories=DRAWN_EPISODES if picture else 0)
         if picture:
             title = f"{task_label(self.cfg.task)}, {self.cfg.method.name}: {self.counters.frames:,} decisions trained"
             image = trajectory_image(records, self.params.simulation.airspace, title=title)
@@ -431,7 +431,7 @@ class Trainer:
 
     def final_evaluation(self) -> dict[str, Any]:
         """The paper's evaluation (``eval.episodes`` deterministic episodes) -> ``eval/eval.json``."""
-        summary, records = self.evaluate(self.cfg.eval.episodes, record_trajectories=True)
+        summary, records = self.evaluate(self.cfg.eval.episodes, trajectories=DRAWN_EPISODES)
         summary["ms_per_instruction"] = instruction_latency_ms(self.eval_env, self.actor)
         summary.update({
             "task": self.cfg.task.name, "method": self.cfg.method.name, "reward": self.cfg.reward.name,
@@ -443,6 +443,7 @@ class Trainer:
         summary["search_objective"] = search_objective(summary, search.success, search.max_instructions,
                                                        search.penalty_seconds)
         write_evaluation(self.run_dir / "eval", summary, records)
+        title = f"{task_label(self.cfg.task)}, {self.cfg.method.name}: {DRAWN_EPISODES} evaluation episodes"
         plot_trajectories(records, self.run_dir / "eval" / "trajectories.png", self.params.simulation.airspace,
-                          title=f"{task_label(self.cfg.task)}, {self.cfg.method.name}: 10 evaluation episodes")
+                          title=title)
         return summary

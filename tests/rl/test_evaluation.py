@@ -121,21 +121,21 @@ def assert_same_records(a: EpisodeRecords, b: EpisodeRecords) -> None:
 
 
 def test_run_episodes_is_reproducible_for_a_seed(params, actor):
-    first = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, record_trajectories=True)
+    first = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, trajectories=16)
     torch.manual_seed(999)  # the global RNG must not matter
-    again = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, record_trajectories=True)
+    again = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, trajectories=16)
     assert_same_records(first, again)
-    other = run_episodes(GuidanceEnv(params, num_envs=16, seed=6), actor, record_trajectories=True)
+    other = run_episodes(GuidanceEnv(params, num_envs=16, seed=6), actor, trajectories=16)
     assert not torch.equal(first.initial_aircraft_state, other.initial_aircraft_state)
 
     # Reseeding the same environment replays the same episodes.
     env = GuidanceEnv(params, num_envs=16, seed=0)
     env.set_seed(5)
-    assert_same_records(first, run_episodes(env, actor, record_trajectories=True))
+    assert_same_records(first, run_episodes(env, actor, trajectories=16))
 
 
 def test_run_episodes_records_are_consistent(params, actor):
-    result = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, record_trajectories=True)
+    result = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, trajectories=16)
     assert result.outcome.shape == (16,)
     assert bool((result.outcome != Outcome.RUNNING).all())  # every episode ends within max_decisions
     assert bool(((result.decisions >= 1) & (result.decisions <= params.max_decisions)).all())
@@ -151,6 +151,21 @@ def test_run_episodes_records_are_consistent(params, actor):
         assert torch.equal(frozen, frozen[:1].expand_as(frozen))
     summary = summarise(result)
     assert sum(summary["outcomes"].values()) == 16
+
+
+def test_run_episodes_keeps_the_paths_of_the_first_episodes_only(params, actor):
+    every = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, trajectories=16)
+    first = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, trajectories=3)
+    assert torch.equal(first.trajectory_aircraft, every.trajectory_aircraft[:3])
+    assert torch.equal(first.trajectory_destination, every.trajectory_destination[:3])
+    for field in ("outcome", "decisions", "instructions", "episode_return", "final_distance"):
+        assert torch.equal(getattr(first, field), getattr(every, field)), field  # the episodes are the same
+    more = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, trajectories=100)
+    assert torch.equal(more.trajectory_aircraft, every.trajectory_aircraft)
+    none = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor)
+    assert none.trajectory_aircraft is None and none.trajectory_destination is None
+    with pytest.raises(ValueError, match="trajectories=-1"):
+        run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, trajectories=-1)
 
 
 def test_counters_match_a_hand_count_of_the_replayed_actions(params, actor):
