@@ -115,7 +115,8 @@ def ppo_update(
     Raises :class:`TrainingDiverged` (naming ``where`` and the update) on a non-finite loss or gradient,
     before the optimiser step, so the parameters stay finite.
     """
-    totals: dict[str, float] = {}
+    logged: list[str] = []
+    sums: torch.Tensor | None = None  # float64 sums of the logged terms, in ``logged``'s order
     updates = 0
     parameters = list(loss.parameters())  # once: loss.parameters() walks every submodule of actor and critic
     kl_limit = 1.5 * target_kl if target_kl > 0 else None
@@ -136,10 +137,13 @@ def ppo_update(
             raise TrainingDiverged(f"non-finite gradient {where}, update {updates + 1}")
         optimizer.step()
         updates += 1
-        for key in LOGGED_LOSS_TERMS:
-            if key in losses.keys():
-                totals[key] = totals.get(key, 0.0) + float(losses[key].detach().float().mean())
-    return {**{key: value / max(updates, 1) for key, value in totals.items()}, "minibatches": float(updates)}
+        if sums is None:
+            logged = [key for key in LOGGED_LOSS_TERMS if key in losses.keys()]
+        # Summed as one tensor and read once per update: a read per term and minibatch was a few % of an update.
+        terms = torch.stack([losses[key].detach().float().mean() for key in logged]).double()
+        sums = terms if sums is None else sums + terms
+    means = {} if sums is None else dict(zip(logged, (sums / updates).tolist(), strict=True))
+    return {**means, "minibatches": float(updates)}
 
 
 def annealed_learning_rate(initial: float, frames: int, total_frames: int) -> float:

@@ -233,3 +233,32 @@ def test_equal_update_cost_gives_a_reuse_update_the_minibatches_of_a_plain_itera
     assert rows[False] == rows[True] > 128  # the same relabelling: only the update differs
     assert steps[False] == 3 * math.ceil(rows[False] / 48)
     assert steps[True] == 3 * math.ceil(128 / 48)
+
+
+class _RecordingLoss(torch.nn.Module):
+    """The loss as it is, keeping each minibatch's logged terms as it computed them."""
+
+    def __init__(self, loss):
+        super().__init__()
+        self.loss = loss
+        self.terms: list[dict[str, float]] = []
+
+    def forward(self, batch):
+        losses = self.loss(batch)
+        self.terms.append({key: float(losses[key].detach().float().mean())
+                           for key in LOGGED_LOSS_TERMS if key in losses.keys()})
+        return losses
+
+
+def test_ppo_update_returns_each_logged_term_averaged_over_its_minibatches():
+    from agrl.rl.ppo import make_optimizer, ppo_update
+
+    loss, batch = _loss_and_batch(3072)
+    recording = _RecordingLoss(loss)
+    losses = ppo_update(recording, make_optimizer(loss, 1e-3), batch, 512, epochs=2, max_grad_norm=0.5, where="here")
+    assert len(recording.terms) == losses["minibatches"] == 12
+    assert set(losses) == {*recording.terms[0], "minibatches"} and "explained_variance" in losses
+    for key in recording.terms[0]:
+        values = [terms[key] for terms in recording.terms]
+        assert losses[key] == sum(values) / len(values), key
+    assert len({terms["loss_objective"] for terms in recording.terms}) > 1  # a mean of different minibatches
