@@ -289,15 +289,19 @@ class GuidanceEnv(EnvBase):
         return state
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
-        destination_speed = tensordict["destination_speed"]
-        destination_turn_rate = tensordict["destination_turn_rate"]
-        if self.params.destination.name is MotionKind.IRREGULAR:
-            motion = self.params.destination
-            destination_speed, destination_turn_rate = redraw_irregular_motion(
-                destination_speed, destination_turn_rate, motion.change_probability,
-                motion.speed_range, motion.max_turn_rate, self._generator,
-            )
+        destination_speed, destination_turn_rate = self.next_destination_motion(
+            tensordict["destination_speed"], tensordict["destination_turn_rate"])
         return self.transition(tensordict, destination_speed, destination_turn_rate)
+
+    def next_destination_motion(self, speed: torch.Tensor,
+                                turn_rate: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The destination's speed and turn rate for the next decision of rows now moving at these: the irregular
+        destination's random redraw (from the env's generator, one draw of each kind per row), else unchanged."""
+        if self.params.destination.name is not MotionKind.IRREGULAR:
+            return speed, turn_rate
+        motion = self.params.destination
+        return redraw_irregular_motion(speed, turn_rate, motion.change_probability, motion.speed_range,
+                                       motion.max_turn_rate, self._generator)
 
     def transition(
         self, state: TensorDictBase, destination_speed: torch.Tensor, destination_turn_rate: torch.Tensor

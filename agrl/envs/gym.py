@@ -39,7 +39,6 @@ from gymnasium import spaces
 
 from agrl.config import ConfigError, config_options, guidance_parameters, one_line
 from agrl.core.aircraft import MANEUVER_NAMES
-from agrl.core.destinations import redraw_irregular_motion
 from agrl.core.observation import observation_features
 from agrl.core.parameters import MOTION_FIELDS, GuidanceParameters, MotionKind, tasks_taking
 from agrl.core.termination import Outcome
@@ -365,12 +364,9 @@ class GuidanceGymEnv(gymnasium.Env):
                 _fail("action", action, f"an integer maneuver index in [0, {NUM_ACTIONS - 1}]")
             action = index
         action = int(action)
-        if self._irregular:  # GuidanceEnv._step's redraw, from the same generator
-            motion = self.params.destination
-            speed, turn_rate = redraw_irregular_motion(
-                torch.tensor([self._destination_speed]), torch.tensor([self._destination_turn_rate]),
-                motion.change_probability, motion.speed_range, motion.max_turn_rate, self.env.generator,
-            )
+        if self._irregular:  # GuidanceEnv's step's redraw, from the same generator
+            speed, turn_rate = self.env.next_destination_motion(
+                torch.tensor([self._destination_speed]), torch.tensor([self._destination_turn_rate]))
             self._destination_speed, self._destination_turn_rate = float(speed[0]), float(turn_rate[0])
         potential_before = self._potential_now  # the state has not changed since it was computed
         result = reference_decision(self._aircraft, self._destination, self._destination_speed,

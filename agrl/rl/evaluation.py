@@ -20,7 +20,6 @@ from typing import Any
 import torch
 from tensordict import TensorDictBase
 from torchrl.envs import ExplorationType, set_exploration_type
-from torchrl.envs.utils import step_mdp
 
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import GuidanceEnv
@@ -41,45 +40,60 @@ class EpisodeRecords:
     trajectory_destination: torch.Tensor | None = None
 
 
+#: Rows :func:`run_episodes` steps at once are padded to a multiple of this: the compiled simulator's kernel computes
+#: the rows after its last full vector (8 or 16 floats) in a second copy of its loop, which the C++ compiler rounds
+#: differently in places, so a row's result would depend on how many rows are still flying.
+ROW_MULTIPLE = 16
+
+#: What :func:`run_episodes` keeps of each row at the end of its episode; the env counts decisions, instructions and
+#: return.
+_FINAL_KEYS = ("aircraft_state", "destination_state", "outcome", "step_count", "instruction_count", "episode_return")
+
+
 @torch.no_grad()
 def run_episodes(
     env: GuidanceEnv, actor, trajectories: int = 0, reset: TensorDictBase | None = None
 ) -> EpisodeRecords:
     """Run one episode per env row with the actor's deterministic (argmax) action.
 
-    Rows keep being stepped after they finish (the batch moves together), but only
-    each row's first episode is recorded. ``trajectories``: how many episodes (the first rows) also keep their
-    path, state by state (what a trajectory figure draws; every path of a large evaluation would cost
-    hundreds of megabytes).
+    Each decision steps only the rows still flying (:meth:`GuidanceEnv.transition`), so an evaluation costs its
+    episodes' decisions rather than its longest episode's times its rows; the irregular destination's redraws still
+    come from the env's generator for every row, as the env's own step draws them, so the episodes are those of
+    ``env.step`` bit for bit. ``trajectories``: how many episodes (the first rows) also keep their path, state by
+    state (what a trajectory figure draws; every path of a large evaluation would cost hundreds of megabytes).
     """
     if trajectories < 0:
         raise ValueError(f"trajectories={trajectories}: the number of episodes whose paths are kept, >= 0")
     td = env.reset(reset) if reset is not None else env.reset()
     count = env.batch_size.numel()
-    device = env.device
     traced = min(trajectories, count)
     initial = td["aircraft_state"].clone()
-    # Each row's state at the end of its first episode; the env itself counts decisions, instructions, return.
-    final_keys = ("aircraft_state", "destination_state", "outcome", "step_count", "instruction_count", "episode_return")
-    final = td.select(*final_keys).clone()
-    running = torch.ones(count, dtype=torch.bool, device=device)
-    aircraft_path = [td["aircraft_state"][:traced].clone()]
-    destination_path = [td["destination_state"][:traced].clone()]
+    final = td.select(*_FINAL_KEYS).clone()
+    aircraft_now, destination_now = td["aircraft_state"][:traced].clone(), td["destination_state"][:traced].clone()
+    aircraft_path, destination_path = [aircraft_now.clone()], [destination_now.clone()]
+    # Every row's destination motion, redrawn each decision as env.step would (finished rows' values unused).
+    speed, turn_rate = td["destination_speed"], td["destination_turn_rate"]
+    rows = torch.arange(count, device=env.device)  # the env rows still flying, in order
+    state = td
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         for _ in range(env.params.max_decisions):
-            td = env.step(actor(td))
-            step = td["next"]
+            state = actor(state)
+            speed, turn_rate = env.next_destination_motion(speed, turn_rate)
+            step = _aligned_transition(env, state, speed[rows], turn_rate[rows])
             if traced:
-                moving = running[:traced, None]
-                aircraft_path.append(torch.where(moving, step["aircraft_state"][:traced], aircraft_path[-1]))
-                destination_path.append(torch.where(moving, step["destination_state"][:traced],
-                                                    destination_path[-1]))
-            finished = running & step["done"].squeeze(-1)
-            final = step.select(*final_keys).where(finished, final)
-            running &= ~finished
-            if not bool(running.any()):
-                break
-            td = step_mdp(td)
+                shown = rows < traced
+                aircraft_now[rows[shown]] = step["aircraft_state"][shown]
+                destination_now[rows[shown]] = step["destination_state"][shown]
+                aircraft_path.append(aircraft_now.clone())
+                destination_path.append(destination_now.clone())
+            done = step["done"].squeeze(-1)
+            if bool(done.any()):
+                final[rows[done]] = step[done].select(*_FINAL_KEYS)
+                flying = ~done
+                rows, step = rows[flying], step[flying]
+                if not rows.numel():
+                    break
+            state = step
     relative = final["aircraft_state"][:, :2] - final["destination_state"][:, :2]
     return EpisodeRecords(
         initial_aircraft_state=initial.cpu(),
@@ -91,6 +105,18 @@ def run_episodes(
         trajectory_aircraft=torch.stack(aircraft_path, 1).cpu() if traced else None,
         trajectory_destination=torch.stack(destination_path, 1).cpu() if traced else None,
     )
+
+
+def _aligned_transition(env: GuidanceEnv, state: TensorDictBase, speed: torch.Tensor,
+                        turn_rate: torch.Tensor) -> TensorDictBase:
+    """``env.transition`` of ``state``'s rows, run on a multiple of :data:`ROW_MULTIPLE` rows (copies of the first
+    row fill the batch up) so that each row is computed as in any other batch."""
+    rows = state.shape[0]
+    missing = -rows % ROW_MULTIPLE
+    if not missing:
+        return env.transition(state, speed, turn_rate)
+    index = torch.cat((torch.arange(rows, device=speed.device), speed.new_zeros(missing, dtype=torch.long)))
+    return env.transition(state[index], speed[index], turn_rate[index])[:rows]
 
 
 def wilson_interval(successes: int, trials: int, z: float = 1.959964) -> tuple[float, float]:

@@ -8,6 +8,7 @@ import math
 
 import pytest
 import torch
+from torchrl.envs import ExplorationType, set_exploration_type
 from torchrl.envs.utils import step_mdp
 
 from agrl.config import to_guidance_parameters
@@ -168,9 +169,63 @@ def test_run_episodes_keeps_the_paths_of_the_first_episodes_only(params, actor):
         run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, trajectories=-1)
 
 
+def _stepping_every_row(env: GuidanceEnv, actor) -> EpisodeRecords:
+    """What run_episodes records, from TorchRL's ``env.step`` on the whole batch until every row is done."""
+    td = env.reset()
+    initial = td["aircraft_state"].clone()
+    aircraft, destination = [td["aircraft_state"].clone()], [td["destination_state"].clone()]
+    keys = ("aircraft_state", "destination_state", "outcome", "step_count", "instruction_count", "episode_return")
+    final, running = td.select(*keys).clone(), torch.ones(env.batch_size, dtype=torch.bool)
+    with set_exploration_type(ExplorationType.DETERMINISTIC):
+        while bool(running.any()):
+            td = env.step(actor(td))
+            step = td["next"]
+            aircraft.append(torch.where(running[:, None], step["aircraft_state"], aircraft[-1]))
+            destination.append(torch.where(running[:, None], step["destination_state"], destination[-1]))
+            finished = running & step["done"].squeeze(-1)
+            final = step.select(*keys).where(finished, final)
+            running &= ~finished
+            td = step_mdp(td)
+    relative = final["aircraft_state"][:, :2] - final["destination_state"][:, :2]
+    return EpisodeRecords(initial, final["outcome"], final["step_count"], final["instruction_count"],
+                          final["episode_return"], relative.norm(dim=-1), torch.stack(aircraft, 1),
+                          torch.stack(destination, 1))
+
+
+def test_run_episodes_flies_the_episodes_of_the_env_step(compose_train, tiny_args, actor):
+    """Stepping only the rows still flying gives every record of TorchRL's step of the whole batch, bit for bit,
+    with the irregular destination's redraws (the env's generator) too; and its paths, for the rows it keeps."""
+    cfg = compose_train(*tiny_args({"simulation.max_decisions": 12}), "task=irregular")
+    irregular = to_guidance_parameters(cfg.task, cfg.reward, cfg.simulation)
+    expected = _stepping_every_row(GuidanceEnv(irregular, num_envs=40, seed=3), actor)
+    result = run_episodes(GuidanceEnv(irregular, num_envs=40, seed=3), actor, trajectories=40)
+    assert len(set(result.decisions.tolist())) > 2  # episodes of different lengths: rows leave at different steps
+    assert_same_records(result, expected)
+
+
+@pytest.mark.slow  # the training's compiled simulator: half a minute to compile on a cold cache
+def test_run_episodes_flies_the_episodes_of_the_env_step_with_the_compiled_simulator():
+    """With the compiled simulator a row's result depends on its place in the batch unless the batch is a whole
+    number of vectors (run_episodes pads it to a multiple of ROW_MULTIPLE): the shipped agent's 1008 episodes, whose
+    rows leave one by one, against TorchRL's step of the whole batch of 1008 (a multiple of 16 rows)."""
+    from agrl.config.records import saved_agent_config, saved_guidance_parameters
+    from agrl.evaluate import load_agent
+
+    actor, saved, _ = load_agent("baseline")
+    params = saved_guidance_parameters(saved, compile=True)
+    observation = saved_agent_config(saved).observation
+    def episodes() -> GuidanceEnv:
+        return GuidanceEnv(params, num_envs=1008, seed=11, observation=observation)
+
+    result = run_episodes(episodes(), actor, trajectories=1008)
+    assert len(set(result.decisions.tolist())) > 20
+    assert_same_records(result, _stepping_every_row(episodes(), actor))
+
+
 def test_counters_match_a_hand_count_of_the_replayed_actions(params, actor):
     """Record the actions of an evaluation, replay them through a fresh env, count decisions and maneuver
-    changes by hand (the aircraft starts in steady flight, action 0) and compare with the records."""
+    changes by hand (the aircraft starts in steady flight, action 0) and compare with the records. The actor sees
+    the rows still flying, in order; the replay steps every row and gives those rows the recorded actions."""
     assert MANEUVER_NAMES[0] == "steady_flight"
     actions = []
 
@@ -184,8 +239,11 @@ def test_counters_match_a_hand_count_of_the_replayed_actions(params, actor):
     td = env.reset()
     decisions = [None] * 16
     outcomes, env_counts = [None] * 16, [None] * 16
+    flown = torch.zeros(16, len(actions), dtype=torch.int64)
     for step, action in enumerate(actions):
-        td["action"] = action
+        flying = torch.tensor([decision is None for decision in decisions])
+        flown[flying, step] = action  # fails unless the evaluation flew exactly the rows still flying here
+        td["action"] = flown[:, step]
         td = env.step(td)
         for row in range(16):
             if decisions[row] is None and bool(td["next", "done"][row]):
@@ -193,7 +251,7 @@ def test_counters_match_a_hand_count_of_the_replayed_actions(params, actor):
                 outcomes[row] = int(td["next", "outcome"][row])
                 env_counts[row] = (int(td["next", "step_count"][row]), int(td["next", "instruction_count"][row]))
         td = step_mdp(td)
-    flown = torch.stack(actions, dim=1)  # (episodes, steps)
+    assert all(decision is not None for decision in decisions)
     instructions = []
     for row in range(16):
         previous, changes = 0, 0
