@@ -15,6 +15,9 @@ integration step = 150 integration steps):
   numpy out) at the TorchRL env's batch, eager and compiled;
 - ``gym_env``: ``gymnasium.make("agrl/Guidance-v0")`` stepped with random maneuvers and reset at the
   end of each episode (what a gymnasium training loop calls), with the ratio to the reference;
+- ``evaluation``: the paper's evaluation of the shipped baseline (:func:`agrl.rl.evaluation.run_episodes`, its
+  deterministic policy on its own task, fixed) on ``--eval-episodes`` episodes, as ``python -m agrl.evaluate``
+  runs it: episodes per second, and the decisions they flew;
 - ``guide_single`` / ``guide_batch``: microseconds per query of ``agrl.guide.Guide`` (the shipped
   baseline, from its checkpoint) for one query (``instruct``, median over start states) and per row of
   one ``instruct_batch`` call at ``--guide-batch`` rows; ``--guide-formats onnx torch_export`` adds the
@@ -264,6 +267,39 @@ def bench_gym_env(params_task: dict, repeats: int, min_seconds: float) -> dict:
     }
 
 
+def bench_evaluation(episodes: int, compiled: bool, device: torch.device, repeats: int, min_seconds: float) -> dict:
+    """Episodes per second of the shipped baseline's evaluation on its task: the same ``episodes`` every call."""
+    from agrl.config.records import saved_agent_config, saved_guidance_parameters
+    from agrl.envs.guidance import GuidanceEnv
+    from agrl.evaluate import load_agent
+    from agrl.rl.evaluation import run_episodes
+
+    actor, saved, _ = load_agent("baseline", device)
+    params = saved_guidance_parameters(saved, compile=compiled)
+    env = GuidanceEnv(params, num_envs=episodes, device=device, seed=777,
+                      observation=saved_agent_config(saved).observation)
+    flown = []
+
+    def one_evaluation():
+        env.set_seed(777)
+        flown.append(int(run_episodes(env, actor).decisions.sum()))
+
+    seconds, calls = time_call(one_evaluation, repeats, min_seconds, warmup=1, sync=_synchronize(device))
+    return {
+        "name": "evaluation_episodes_per_second",
+        "value": _significant(episodes / seconds),
+        "unit": "episodes/s",
+        "batch": episodes,
+        "compiled": compiled,
+        "device": str(device),
+        "agent": "baseline",
+        "decisions_flown": flown[-1],
+        "seconds_per_evaluation": _significant(seconds),
+        "calls_per_timing": calls,
+        "repeats": repeats,
+    }
+
+
 def bench_guide(kind: str, batch: int, repeats: int, min_seconds: float) -> list[dict]:
     """Microseconds per query of the baseline :class:`agrl.guide.Guide` loaded from ``kind``: one query, a batch."""
     import tempfile
@@ -346,6 +382,8 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                         help="torch.set_num_threads (default: torch's default, one per core). On a machine "
                              "that other processes keep busy, 1 gives stable figures; more threads then "
                              "wait for each other")
+    parser.add_argument("--eval-episodes", type=positive_int, default=None, metavar="N",
+                        help="episodes of the evaluation measurement (default 10000; --quick: 64)")
     parser.add_argument("--guide-batch", type=positive_int, default=None, metavar="N",
                         help="rows of the guide's batched query (default 4096; --quick: 64)")
     parser.add_argument("--guide-formats", nargs="+", choices=("checkpoint", "onnx", "torch_export"),
@@ -358,6 +396,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     args.batch_sizes = args.batch_sizes or list(QUICK_BATCH_SIZES if quick else FULL_BATCH_SIZES)
     args.env_batch = args.env_batch or (64 if quick else 4096)
     args.guide_batch = args.guide_batch or (64 if quick else 4096)
+    args.eval_episodes = args.eval_episodes or (64 if quick else 10_000)
     args.repeats = args.repeats or (1 if quick else 5)
     args.min_seconds = args.min_seconds if args.min_seconds is not None else (0.0 if quick else 1.0)
     args.modes = args.modes or (["eager"] if quick else list(MODES))
@@ -404,6 +443,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     record = bench_gym_env(TASK, args.repeats, args.min_seconds)
     record["speedup_vs_reference"] = _significant(record["value"] / reference["value"], 3)
     emit(record)
+    for mode in args.modes:
+        emit(bench_evaluation(args.eval_episodes, mode == "compiled", device, args.repeats, args.min_seconds))
     for kind in args.guide_formats:
         for record in bench_guide(kind, args.guide_batch, args.repeats, args.min_seconds):
             emit(record)

@@ -31,7 +31,7 @@ PEER_TRAINERS = {"agrl": ("agrl", "ratio_agrl_over_sb3"),
 
 #: The benchmark runs tested here: {name: ``python -m`` arguments}; the last two need stable-baselines3.
 BENCHMARK_RUNS = {
-    "bench": ("benchmarks.bench", "--quick", "--batch-sizes", "8", "32", "--env-batch", "8"),
+    "bench": ("benchmarks.bench", "--quick", "--batch-sizes", "8", "32", "--env-batch", "8", "--eval-episodes", "16"),
     "peer": (*PEER_RUN, "agrl", "stable-baselines3", "floor"),
     "race": ("benchmarks.bench_race", "--budget-seconds", "2", "--eval-every", "1", "--eval-episodes", "8",
              "--max-decisions", "4", "--no-compile", "--threads", "1", "--sb3-geometry", "agrl", "--agrl-override",
@@ -69,13 +69,18 @@ def test_quick_run_prints_json_lines(benchmark_runs):
         "torchrl_env_decisions_per_second",
         "gym_vector_env_decisions_per_second",
         "gym_env_decisions_per_second",
+        "evaluation_episodes_per_second",
         "guide_single_query_us",
         "guide_batch_us_per_query",
     ]
     guide_single, guide_batch = records[-2:]
+    evaluation = records[-3]
+    assert evaluation["unit"] == "episodes/s" and evaluation["value"] > 0 and evaluation["batch"] == 16
+    assert evaluation["agent"] == "baseline" and evaluation["compiled"] is False
+    assert 16 <= evaluation["decisions_flown"] <= 16 * 200  # each episode flies 1 to 200 decisions
     assert guide_single["unit"] == guide_batch["unit"] == "us/query" and guide_single["value"] > 0
     assert guide_single["batch"] == 1 and guide_batch["batch"] == 64 and guide_batch["guide"] == "checkpoint"
-    records = records[:-2]
+    records = records[:-3]
     for record in records[1:]:
         assert record["unit"] == "decisions/s" and record["value"] > 0
         assert record["substeps"] == 150 and record["compiled"] is False
