@@ -383,7 +383,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
                              "that other processes keep busy, 1 gives stable figures; more threads then "
                              "wait for each other")
     parser.add_argument("--eval-episodes", type=positive_int, default=None, metavar="N",
-                        help="episodes of the evaluation measurement (default 10000; --quick: 64)")
+                        help="episodes of the evaluation measurement (default 1000, the paper's; --quick: 64)")
     parser.add_argument("--guide-batch", type=positive_int, default=None, metavar="N",
                         help="rows of the guide's batched query (default 4096; --quick: 64)")
     parser.add_argument("--guide-formats", nargs="+", choices=("checkpoint", "onnx", "torch_export"),
@@ -396,7 +396,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
     args.batch_sizes = args.batch_sizes or list(QUICK_BATCH_SIZES if quick else FULL_BATCH_SIZES)
     args.env_batch = args.env_batch or (64 if quick else 4096)
     args.guide_batch = args.guide_batch or (64 if quick else 4096)
-    args.eval_episodes = args.eval_episodes or (64 if quick else 10_000)
+    args.eval_episodes = args.eval_episodes or (64 if quick else 1000)
     args.repeats = args.repeats or (1 if quick else 5)
     args.min_seconds = args.min_seconds if args.min_seconds is not None else (0.0 if quick else 1.0)
     args.modes = args.modes or (["eager"] if quick else list(MODES))
