@@ -64,13 +64,13 @@ class CachedRowwiseCompile:
     keep their dtype, device and strides from call to call (a call that breaks the compilation's guards raises,
     and :class:`EagerFallback` then runs ``fn`` eagerly), and its first argument (or its first element) is a
     tensor. It is compiled ahead of its first call (``torch.compile(...).aot_compile``) with the rows as a dynamic
-    dimension, once per dtype, device and torch thread count, and saved in :func:`compile_cache_dir` under a name
-    that hashes these, ``key`` (the constants the caller passes in, e.g. its parameters), the source of ``fn``'s
-    package, the torch and Python versions and the processor. A later process with the same name loads it (under
-    a second, instead of tens of seconds of tracing and compiling); torch's own cache (``TORCHINDUCTOR_CACHE_DIR``)
-    keeps the built kernels it needs, and without them loading rebuilds them (a few seconds). A file that cannot be
-    loaded or no longer fits is compiled again and replaced, with one warning line; a folder that cannot be
-    written is used in memory only.
+    dimension, once per dtype, device, torch thread count and grad mode, and saved in :func:`compile_cache_dir`
+    under a name that hashes these, ``key`` (the constants the caller passes in, e.g. its parameters), the source
+    of ``fn``'s package, the torch and Python versions and the processor. A later process with the same name loads
+    it (under a second, instead of tens of seconds of tracing and compiling); torch's own cache
+    (``TORCHINDUCTOR_CACHE_DIR``) keeps the built kernels it needs, and without them loading rebuilds them (a few
+    seconds). A file that cannot be loaded or no longer fits is compiled again and replaced, with one warning line;
+    a folder that cannot be written is used in memory only.
 
     The files hold code, like torch's own compile cache: they are written by this class for this user and are
     never meant to be shared (the folder is created private).
@@ -86,8 +86,8 @@ class CachedRowwiseCompile:
 
     def __call__(self, *args: Any) -> Any:
         first = _first_tensor(args)
-        # torch's thread count is part of what a compilation guards (its kernels are built for it).
-        signature = (first.dtype, first.device, torch.get_num_threads())
+        # torch's thread count (its kernels are built for it) and grad mode are part of what a compilation guards.
+        signature = (first.dtype, first.device, torch.get_num_threads(), torch.is_grad_enabled())
         compiled = self._compiled.get(signature)
         rows = first.shape[0]
         if compiled is not None and rows > 1:
@@ -199,7 +199,7 @@ def _first_tensor(value: Any) -> torch.Tensor:
 
 def _device_description(signature: tuple) -> str:
     """The processor the kernels are built for: the CPU's vector instructions, and the GPU's model if any."""
-    _, device, _ = signature
+    device = signature[1]
     described = torch.backends.cpu.get_cpu_capability()
     if device.type == "cuda":
         described += f" {torch.cuda.get_device_name(device)} {torch.cuda.get_device_capability(device)}"

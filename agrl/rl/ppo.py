@@ -139,7 +139,7 @@ def ppo_update(
         updates += 1
         if sums is None:
             logged = [key for key in LOGGED_LOSS_TERMS if key in losses.keys()]
-        # Summed as one tensor and read once per update: a read per term and minibatch was a few % of an update.
+        # Summed as one tensor and read once per update, not once per term and minibatch (about 2 % of an update).
         terms = torch.stack([losses[key].detach().float().mean() for key in logged]).double()
         sums = terms if sums is None else sums + terms
     means = {} if sums is None else dict(zip(logged, (sums / updates).tolist(), strict=True))

@@ -153,6 +153,23 @@ def test_each_thread_count_has_its_own_compilation(cache):
         torch.set_num_threads(threads)
 
 
+def test_each_grad_mode_has_its_own_compilation(cache):
+    """torch's compilation guards the grad mode it was made in: training or an evaluation (no grad) and an env
+    stepped in a user's own code (grad on), in one process or one after the other, must neither fall back to eager
+    nor replace each other's file."""
+    function = CachedRowwiseCompile(_rowwise, "the test function", key="grad")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "could not be used", no "failed ... running eagerly"
+        for grad in (False, True, False):
+            with torch.set_grad_enabled(grad):
+                _assert_matches_eager(function, 8)
+        again = CachedRowwiseCompile(_rowwise, "the test function", key="grad")
+        with torch.no_grad():
+            _assert_matches_eager(again, 8)
+    assert again.loaded_from is not None
+    assert len(list(cache.glob("*.bin"))) == 2
+
+
 def test_a_compilation_that_cannot_be_saved_is_still_used(cache, monkeypatch):
     """A full disk (or anything else that stops the file) costs the next process a compilation, not this one."""
     def no_space(self, *args, **kwargs):
