@@ -169,6 +169,7 @@ def test_run_episodes_keeps_the_paths_of_the_first_episodes_only(params, actor):
         run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, trajectories=-1)
 
 
+@torch.no_grad()  # as run_episodes: the compiled simulator's compilation is the same one
 def _stepping_every_row(env: GuidanceEnv, actor) -> EpisodeRecords:
     """What run_episodes records, from TorchRL's ``env.step`` on the whole batch until every row is done."""
     td = env.reset()
