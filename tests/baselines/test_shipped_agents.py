@@ -131,7 +131,7 @@ def test_the_listing_names_every_agent_with_its_file_and_evaluations():
     assert "99.83 % at 6.86 instructions (fixed, 10000 episodes, seed 777)" in result.stdout
 
 
-@pytest.mark.slow  # 10 000 episodes per agent: about a minute each on 2 cores
+@pytest.mark.slow  # 10 000 episodes per agent on the eager simulator, one thread: 11-31 s each
 @pytest.mark.usefixtures("torch_one_thread")
 @pytest.mark.parametrize("name", NAMES)
 def test_each_agent_still_flies_its_first_recorded_evaluation(name):
