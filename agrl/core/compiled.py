@@ -60,7 +60,10 @@ class CachedRowwiseCompile:
     """``fn`` compiled with ``torch.compile`` once for any number of rows, kept on disk for later processes.
 
     ``fn`` must be row-wise: each tensor argument and result has the rows as its first dimension, and row i of the
-    results depends on row i of the arguments only (so one or no row can be padded or run eagerly); its arguments
+    results depends on row i of the arguments only (so one or no row can be padded or run eagerly). The compiled
+    kernel keeps that to float rounding only: the rows after its last full vector (8 floats with AVX2, 16 with
+    AVX-512) run in a second copy of its loop that rounds differently in places, so a caller that needs a row's bits
+    independent of the batch pads it to whole vectors, as the evaluation does. Its arguments
     keep their dtype, device and strides from call to call (a call that breaks the compilation's guards raises,
     and :class:`EagerFallback` then runs ``fn`` eagerly), and its first argument (or its first element) is a
     tensor. It is compiled ahead of its first call (``torch.compile(...).aot_compile``) with the rows as a dynamic

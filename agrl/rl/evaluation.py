@@ -56,11 +56,13 @@ def run_episodes(
 ) -> EpisodeRecords:
     """Run one episode per env row with the actor's deterministic (argmax) action.
 
-    Each decision steps only the rows still flying (:meth:`GuidanceEnv.transition`), so an evaluation costs its
-    episodes' decisions rather than its longest episode's times its rows; the irregular destination's redraws still
-    come from the env's generator for every row, as the env's own step draws them, so the episodes are those of
-    ``env.step`` bit for bit. ``trajectories``: how many episodes (the first rows) also keep their path, state by
-    state (what a trajectory figure draws; every path of a large evaluation would cost hundreds of megabytes).
+    Each decision steps only the rows still flying (:meth:`GuidanceEnv.transition`, padded to
+    :data:`ROW_MULTIPLE` rows), so an evaluation costs its episodes' decisions rather than its longest episode's
+    times its rows; the irregular destination's redraws still come from the env's generator for every row, as the
+    env's own step draws them. The episodes are those of ``env.step`` on the whole batch, bit for bit where that
+    batch fills whole vectors of the compiled kernel (see :data:`ROW_MULTIPLE`). ``trajectories``: how many
+    episodes (the first rows) also keep their path, state by state (what a trajectory figure draws; every path of
+    a large evaluation would cost hundreds of megabytes).
     """
     if trajectories < 0:
         raise ValueError(f"trajectories={trajectories}: the number of episodes whose paths are kept, >= 0")
