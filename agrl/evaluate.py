@@ -64,9 +64,7 @@ def evaluate(cfg) -> dict[str, Any]:
     writable_folder(output / "eval.json")  # before the episodes, not after them
     actor, saved, path = load_agent(cfg.checkpoint, device)
     task = cfg.task if cfg.task is not None else validated_section(TaskConfig, saved["task"])
-    params = saved_guidance_parameters(saved, task)
-    observation = saved_agent_config(saved).observation
-    env = GuidanceEnv(params, num_envs=cfg.episodes, device=device, seed=cfg.seed, observation=observation)
+    env = GuidanceEnv.for_saved_agent(saved, cfg.episodes, task=task, device=device, seed=cfg.seed)
     records = run_episodes(env, actor, trajectories=cfg.trajectories)
     summary = summarise(records)
     summary["ms_per_instruction"] = instruction_latency_ms(env, actor)
@@ -74,7 +72,7 @@ def evaluate(cfg) -> dict[str, Any]:
                     "seed": cfg.seed, "trained_task": saved["task"]["name"], "method": saved["method"]["name"]})
     write_evaluation(output, summary, records)
     if cfg.trajectories:
-        plot_trajectories(records, output / "trajectories.png", params.simulation.airspace, cfg.trajectories,
+        plot_trajectories(records, output / "trajectories.png", env.params.simulation.airspace, cfg.trajectories,
                           title=f"{task_label(task)}, agent from {path.name}")
     return summary
 

@@ -269,15 +269,12 @@ def bench_gym_env(params_task: dict, repeats: int, min_seconds: float) -> dict:
 
 def bench_evaluation(episodes: int, compiled: bool, device: torch.device, repeats: int, min_seconds: float) -> dict:
     """Episodes per second of the shipped baseline's evaluation on its task: the same ``episodes`` every call."""
-    from agrl.config.records import saved_agent_config, saved_guidance_parameters
     from agrl.envs.guidance import GuidanceEnv
     from agrl.evaluate import load_agent
     from agrl.rl.evaluation import run_episodes
 
     actor, saved, _ = load_agent("baseline", device)
-    params = saved_guidance_parameters(saved, compile=compiled)
-    env = GuidanceEnv(params, num_envs=episodes, device=device, seed=777,
-                      observation=saved_agent_config(saved).observation)
+    env = GuidanceEnv.for_saved_agent(saved, episodes, device=device, seed=777, compile=compiled)
     flown = []
 
     def one_evaluation():

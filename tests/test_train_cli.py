@@ -38,14 +38,13 @@ def error_lines(stderr: str) -> list[str]:
 def periodic_success_of(checkpoint) -> float:
     """Success of a training checkpoint's actor on its run's periodic evaluation set (eval.periodic_episodes
     episodes from the evaluation seed, seed + 1000003), evaluated here from the saved actor and config."""
-    from agrl.config import saved_guidance_parameters
     from agrl.envs.guidance import GuidanceEnv
     from agrl.evaluate import load_agent
     from agrl.rl.evaluation import run_episodes, summarise
 
     actor, saved, _ = load_agent(str(checkpoint))
-    params = saved_guidance_parameters(saved, compile=False)
-    env = GuidanceEnv(params, num_envs=saved["eval"]["periodic_episodes"], seed=saved["seed"] + 1_000_003)
+    env = GuidanceEnv.for_saved_agent(saved, saved["eval"]["periodic_episodes"], seed=saved["seed"] + 1_000_003,
+                                      compile=False)
     return summarise(run_episodes(env, actor))["success_rate"]
 
 

@@ -15,7 +15,8 @@ from tensordict import TensorDict, TensorDictBase
 from torchrl.data import Bounded, Categorical, Composite, Unbounded
 from torchrl.envs import EnvBase
 
-from agrl.config.task import require_max_decisions
+from agrl.config.records import saved_agent_config, saved_guidance_parameters
+from agrl.config.task import TaskConfig, require_max_decisions
 from agrl.core.aircraft import AIRCRAFT_FIELDS, MANEUVER_NAMES
 from agrl.core.autopilot import HeldTargets, apply_target_action
 from agrl.core.destinations import redraw_irregular_motion
@@ -110,6 +111,16 @@ class GuidanceEnv(EnvBase):
         self._pending_state: TensorDictBase | None = None
         self._make_specs()
         self._set_seed(seed if seed is not None else int(torch.empty((), dtype=torch.int64).random_()))
+
+    @classmethod
+    def for_saved_agent(cls, saved: dict, num_envs: int = 1, *, task: TaskConfig | None = None,
+                        device: torch.device | str = "cpu", seed: int | None = None,
+                        compile: bool | None = None) -> GuidanceEnv:
+        """The env a checkpoint's agent acts in, from the checkpoint's saved config (``saved``): its task (or
+        ``task`` instead), reward, simulation, action set and observation; ``compile`` overrides the saved
+        simulation's choice when given."""
+        return cls(saved_guidance_parameters(saved, task, compile=compile), num_envs=num_envs, device=device,
+                   seed=seed, observation=saved_agent_config(saved).observation)
 
     # ------------------------------------------------------------------ specs
     def _make_specs(self) -> None:

@@ -12,7 +12,7 @@ import torch
 
 from agrl.baselines import BASELINE_FILE, SHIPPED_AGENTS
 from agrl.cli import check_overrides
-from agrl.config import ConfigError, saved_agent_config, saved_guidance_parameters
+from agrl.config import ConfigError, saved_agent_config
 from agrl.envs.guidance import GuidanceEnv
 from agrl.evaluate import load_agent
 from agrl.guide import Guide, GuideError
@@ -140,9 +140,7 @@ def test_each_agent_still_flies_its_first_recorded_evaluation(name):
     record = SHIPPED_AGENTS[name].evaluations()[0]
     actor, saved, _ = load_agent(name)
     assert record["task"] == saved["task"]["name"]
-    params = saved_guidance_parameters(saved, compile=False)
-    env = GuidanceEnv(params, num_envs=record["episodes"], seed=record["seed"],
-                      observation=saved_agent_config(saved).observation)
+    env = GuidanceEnv.for_saved_agent(saved, record["episodes"], seed=record["seed"], compile=False)
     records = run_episodes(env, actor)
     summary = summarise(records)
     rate, episodes = record["success_rate"], record["episodes"]

@@ -381,3 +381,22 @@ def test_restore_on_next_reset_carries_the_held_targets(targets_params):
     restored = other.reset()
     assert torch.equal(restored["held_targets"], after["held_targets"])
     assert torch.equal(restored["observation"], after["observation"])
+
+
+@pytest.mark.parametrize("name", ["baseline-absolute", "baseline-targets"])
+def test_a_saved_agent_acts_in_the_env_its_checkpoint_describes(name):
+    from agrl.config import TaskConfig, validated_section
+    from agrl.evaluate import load_agent
+
+    actor, saved, _ = load_agent(name)
+    env = GuidanceEnv.for_saved_agent(saved, 4, seed=0, compile=False)
+    assert env.observation_kind == saved["agent"].get("observation", "relative")
+    assert env.holds_targets == (saved.get("actions", {}).get("name") == "targets")
+    assert env.params.destination.name is MotionKind.FIXED and not env.params.compile
+    td = actor(env.reset())
+    assert td["action"].shape == (4,) and bool((td["action"] < env.num_actions).all())
+
+    uniform = validated_section(TaskConfig, {"name": "uniform", "speed": 50.0})
+    other = GuidanceEnv.for_saved_agent(saved, 2, task=uniform, seed=0)
+    assert other.params.destination.name is MotionKind.UNIFORM and other.params.destination.speed == 50.0
+    assert other.params.compile == saved["simulation"]["compile"]
