@@ -28,7 +28,7 @@ import sys
 
 import torch
 
-from agrl.cli import positive_int, writable_folder
+from agrl.cli import positive_int, run_command, writable_folder
 from agrl.config import ConfigError
 from agrl.rl.checkpoint import CheckpointError
 from agrl.rl.distill import distill
@@ -71,4 +71,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_command(main)

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import torch
 
+from agrl.cli import run_command
 from agrl.rl.checkpoint import CheckpointError, average_agents, export_agent
 
 FORMATS = ("checkpoint", "onnx", "torch_export")
@@ -148,4 +149,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_command(main)

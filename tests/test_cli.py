@@ -73,3 +73,45 @@ def test_adding_a_key_no_schema_reads_is_refused():
     with pytest.raises(ConfigError, match=r"^\+ppo\.learning_rat=0\.001 is not allowed: ppo has no key 'learning_rat'"):
         check_overrides(["+ppo.learning_rat=0.001"], "config")
     check_overrides(["+experiment=fast", "seed=1"], "config")  # appending a config group stays allowed
+
+
+def _cyclic_garbage_with_a_flag() -> list:
+    """A reference cycle, already unreachable, and the list its finaliser appends to when it is collected."""
+    import weakref
+
+    collected: list = []
+
+    class Node:
+        pass
+
+    node = Node()
+    node.self = node
+    weakref.finalize(node, collected.append, True)
+    return collected
+
+
+@pytest.mark.parametrize("outcome", ["returns", "raises"])
+def test_a_command_ends_with_its_garbage_collected_and_the_rest_frozen(outcome):
+    """run_command exits with main's code (or lets main's error through), having collected what was garbage, so
+    that nothing frozen was waiting to be finalised, and frozen the rest for a short interpreter teardown."""
+    import gc
+
+    from agrl.cli import run_command
+
+    def main() -> int:
+        if outcome == "raises":
+            raise RuntimeError("main failed")
+        return 3
+
+    gc.disable()  # the cycle must wait for run_command's collection, not for an automatic one
+    try:
+        collected = _cyclic_garbage_with_a_flag()
+        expected = (SystemExit, "3") if outcome == "returns" else (RuntimeError, "main failed")
+        with pytest.raises(expected[0]) as ended:
+            run_command(main)
+        assert str(ended.value) == expected[1]
+        assert collected == [True]
+        assert gc.get_freeze_count() > 0
+    finally:
+        gc.unfreeze()
+        gc.enable()
