@@ -1,8 +1,7 @@
 """``python -m agrl.report``: :func:`agrl.report.cli.main`."""
 
-import sys
-
+from agrl.cli import run_command
 from agrl.report.cli import main
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_command(main)
