@@ -254,7 +254,7 @@ def run_command(main: Callable[[], int | None]) -> NoReturn:
 
 def collect_and_freeze() -> None:
     """Collect cyclic garbage once, then move what is left to the collector's permanent generation: called as a
-    command ends, so that the interpreter's teardown has nothing to walk.
+    command ends, so that the interpreter's teardown has little left to walk.
 
     torch, TorchRL and Hydra leave about half a million objects, and the teardown's collections walk them all
     several times, 1-2 s of every command; one collection here, then the freeze, takes a few tenths of a second

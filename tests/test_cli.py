@@ -103,8 +103,10 @@ def test_a_command_ends_with_its_garbage_collected_and_the_rest_frozen(outcome):
             raise RuntimeError("main failed")
         return 3
 
+    gc.unfreeze()  # nothing frozen before: the freeze counted below is run_command's
     gc.disable()  # the cycle must wait for run_command's collection, not for an automatic one
     try:
+        assert gc.get_freeze_count() == 0
         collected = _cyclic_garbage_with_a_flag()
         expected = (SystemExit, "3") if outcome == "returns" else (RuntimeError, "main failed")
         with pytest.raises(expected[0]) as ended:
