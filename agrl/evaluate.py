@@ -22,28 +22,17 @@ from agrl.config import (
     ConfigError,
     TaskConfig,
     load_config,
-    saved_agent_config,
-    saved_guidance_parameters,
     task_label,
     validated_section,
 )
-from agrl.rl.checkpoint import CheckpointError, load_checkpoint, load_module_state, resolve_checkpoint_path
-
-
-def load_agent(reference: str, device: torch.device | str = "cpu"):
-    """(actor, saved config dict, path) of a checkpoint file, run directory or shipped agent's name."""
-    from agrl.rl.models import make_agent
-
-    path = resolve_checkpoint_path(reference)
-    payload = load_checkpoint(path, required=("actor", "config"))
-    actor, _ = make_agent(saved_agent_config(payload["config"]), saved_guidance_parameters(payload["config"]), device)
-    load_module_state(actor, payload["actor"], path, "actor")
-    return actor.eval(), payload["config"], path
+from agrl.rl.checkpoint import CheckpointError
 
 
 def check_inputs(config) -> None:
     """What the evaluation reads and writes, checked before Hydra runs (agrl.cli.run_checked calls this): the
     checkpoint loads, and ``output_dir`` (if given) can be written (checked last: it creates the folder)."""
+    from agrl.rl.models import load_agent
+
     load_agent(config.checkpoint)
     if config.output_dir:
         try:
@@ -56,6 +45,7 @@ def evaluate(cfg) -> dict[str, Any]:
     from agrl.envs.guidance import GuidanceEnv
     from agrl.plots import plot_trajectories
     from agrl.rl.evaluation import instruction_latency_ms, run_episodes, summarise, write_evaluation
+    from agrl.rl.models import load_agent
 
     device = torch.device(cfg.device)
     if cfg.threads is not None:

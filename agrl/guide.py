@@ -158,7 +158,7 @@ def _from_metadata(text: str, path: Path) -> tuple[Airspace, AircraftLimits, str
 def load_policy(reference: str | Path = "baseline") -> tuple[GuidePolicy, str, str]:
     """(:class:`GuidePolicy`, activation name, checkpoint path) of a shipped agent, a checkpoint or a run directory."""
     from agrl.config import saved_agent_config, saved_guidance_parameters
-    from agrl.evaluate import load_agent
+    from agrl.rl.models import load_agent
 
     actor, saved, path = load_agent(str(reference))
     observation = saved_agent_config(saved).observation

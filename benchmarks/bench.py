@@ -270,8 +270,8 @@ def bench_gym_env(params_task: dict, repeats: int, min_seconds: float) -> dict:
 def bench_evaluation(episodes: int, compiled: bool, device: torch.device, repeats: int, min_seconds: float) -> dict:
     """Episodes per second of the shipped baseline's evaluation on its task: the same ``episodes`` every call."""
     from agrl.envs.guidance import GuidanceEnv
-    from agrl.evaluate import load_agent
     from agrl.rl.evaluation import run_episodes
+    from agrl.rl.models import load_agent
 
     actor, saved, _ = load_agent("baseline", device)
     env = GuidanceEnv.for_saved_agent(saved, episodes, device=device, seed=777, compile=compiled)

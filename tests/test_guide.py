@@ -10,8 +10,8 @@ from torchrl.envs import ExplorationType, set_exploration_type
 
 from agrl.config import saved_guidance_parameters
 from agrl.core.observation import policy_observation
-from agrl.evaluate import load_agent
 from agrl.guide import Guide, GuideError
+from agrl.rl.models import load_agent
 
 STATES = 10_000
 

@@ -39,8 +39,8 @@ def periodic_success_of(checkpoint) -> float:
     """Success of a training checkpoint's actor on its run's periodic evaluation set (eval.periodic_episodes
     episodes from the evaluation seed, seed + 1000003), evaluated here from the saved actor and config."""
     from agrl.envs.guidance import GuidanceEnv
-    from agrl.evaluate import load_agent
     from agrl.rl.evaluation import run_episodes, summarise
+    from agrl.rl.models import load_agent
 
     actor, saved, _ = load_agent(str(checkpoint))
     env = GuidanceEnv.for_saved_agent(saved, saved["eval"]["periodic_episodes"], seed=saved["seed"] + 1_000_003,

@@ -5,14 +5,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from pathlib import Path
 
 import torch
 from tensordict.nn import TensorDictModule
 from torch import nn
 from torchrl.modules import MLP, ProbabilisticActor, ValueOperator
 
+from agrl.config import saved_agent_config, saved_guidance_parameters
 from agrl.core.observation import observation_size
 from agrl.envs.guidance import NUM_ACTIONS
+from agrl.rl.checkpoint import load_checkpoint, load_module_state, resolve_checkpoint_path
 
 ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "elu": nn.ELU}
 
@@ -24,6 +27,16 @@ def make_agent(agent, params, device: torch.device | str = "cpu") -> tuple[Proba
     holds_targets, num_actions = params.actions.holds_targets, params.num_actions
     return (make_actor(agent.actor_hidden, agent.activation, device, agent.observation, num_actions, holds_targets),
             make_critic(agent.critic_hidden, agent.activation, device, agent.observation, holds_targets))
+
+
+def load_agent(reference: str, device: torch.device | str = "cpu") -> tuple[ProbabilisticActor, dict, Path]:
+    """(actor in eval mode, saved config dict, path) of a checkpoint file, run directory or shipped agent's name;
+    ``GuidanceEnv.for_saved_agent(saved, ...)`` is the env it acts in."""
+    path = resolve_checkpoint_path(reference)
+    payload = load_checkpoint(path, required=("actor", "config"))
+    actor, _ = make_agent(saved_agent_config(payload["config"]), saved_guidance_parameters(payload["config"]), device)
+    load_module_state(actor, payload["actor"], path, "actor")
+    return actor.eval(), payload["config"], path
 
 
 def make_actor(hidden: list[int], activation: str, device: torch.device | str = "cpu",

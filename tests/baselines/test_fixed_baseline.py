@@ -23,8 +23,8 @@ import torch
 from agrl.baselines import BASELINE_FILE
 from agrl.config import saved_guidance_parameters
 from agrl.envs.guidance import GuidanceEnv
-from agrl.evaluate import load_agent
 from agrl.rl.evaluation import run_episodes, summarise
+from agrl.rl.models import load_agent
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
 

@@ -14,10 +14,10 @@ from agrl.baselines import BASELINE_FILE, SHIPPED_AGENTS
 from agrl.cli import check_overrides
 from agrl.config import ConfigError, saved_agent_config
 from agrl.envs.guidance import GuidanceEnv
-from agrl.evaluate import load_agent
 from agrl.guide import Guide, GuideError
 from agrl.rl.checkpoint import CheckpointError, load_checkpoint, resolve_checkpoint_path
 from agrl.rl.evaluation import run_episodes, summarise
+from agrl.rl.models import load_agent
 
 NAMES = list(SHIPPED_AGENTS)
 ALLOWED = ("baseline, baseline-first-search, baseline-two-stage, baseline-stage1, "

@@ -386,7 +386,7 @@ def test_restore_on_next_reset_carries_the_held_targets(targets_params):
 @pytest.mark.parametrize("name", ["baseline-absolute", "baseline-targets"])
 def test_a_saved_agent_acts_in_the_env_its_checkpoint_describes(name):
     from agrl.config import TaskConfig, validated_section
-    from agrl.evaluate import load_agent
+    from agrl.rl.models import load_agent
 
     actor, saved, _ = load_agent(name)
     env = GuidanceEnv.for_saved_agent(saved, 4, seed=0, compile=False)

@@ -1,4 +1,4 @@
-"""Checkpoints: atomic save, round trip into ``agrl.evaluate.load_agent``, one-line errors for bad files."""
+"""Checkpoints: atomic save, round trip into ``agrl.rl.models.load_agent``, one-line errors for bad files."""
 
 from __future__ import annotations
 
@@ -15,7 +15,6 @@ from torchrl.envs import ExplorationType, set_exploration_type
 from agrl.config import to_guidance_parameters
 from agrl.core.observation import OBSERVATION_SIZE
 from agrl.envs.guidance import GuidanceEnv
-from agrl.evaluate import load_agent
 from agrl.rl.checkpoint import (
     FORMAT_VERSION,
     CheckpointError,
@@ -23,6 +22,7 @@ from agrl.rl.checkpoint import (
     resolve_checkpoint_path,
     save_checkpoint,
 )
+from agrl.rl.models import load_agent
 from agrl.rl.trainer import Trainer
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")

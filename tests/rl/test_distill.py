@@ -10,9 +10,9 @@ import torch
 from agrl.config import saved_agent_config
 from agrl.core.observation import absolute_observation, observation_size, policy_observation
 from agrl.envs.guidance import GuidanceEnv
-from agrl.evaluate import load_agent
 from agrl.rl.checkpoint import load_checkpoint
 from agrl.rl.distill import distill
+from agrl.rl.models import load_agent
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
 

@@ -210,7 +210,7 @@ def test_run_episodes_flies_the_episodes_of_the_env_step_with_the_compiled_simul
     number of vectors (run_episodes pads it to a multiple of ROW_MULTIPLE): the shipped agent's 1008 episodes, whose
     rows leave one by one, against TorchRL's step of the whole batch of 1008 (a multiple of 16 rows)."""
     from agrl.config.records import saved_agent_config, saved_guidance_parameters
-    from agrl.evaluate import load_agent
+    from agrl.rl.models import load_agent
 
     actor, saved, _ = load_agent("baseline")
     params = saved_guidance_parameters(saved, compile=True)

@@ -14,7 +14,7 @@ from agrl.core.aircraft import AIRCRAFT_FIELDS
 from agrl.core.observation import RELATIVE_FEATURES
 from agrl.core.termination import Outcome
 from agrl.envs import GuidanceEnv, MotionKind
-from agrl.evaluate import load_agent
+from agrl.rl.models import load_agent
 from agrl.rl.reuse import BaselinePolicy, candidate_steps, relabelled_trajectories, search_candidates
 
 #: One unit in the last place of a float32 near 1, relative: float32's machine epsilon.
