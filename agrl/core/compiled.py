@@ -67,7 +67,8 @@ class CachedRowwiseCompile:
     keep their dtype, device and strides from call to call (a call that breaks the compilation's guards raises,
     and :class:`EagerFallback` then runs ``fn`` eagerly), and its first argument (or its first element) is a
     tensor. It is compiled ahead of its first call (``torch.compile(...).aot_compile``) with the rows as a dynamic
-    dimension, once per dtype, device, torch thread count and grad mode, and saved in :func:`compile_cache_dir`
+    dimension, once per dtype, device, torch thread count and grad mode (a call in inference mode uses the
+    no-grad one), and saved in :func:`compile_cache_dir`
     under a name that hashes these, ``key`` (the constants the caller passes in, e.g. its parameters), the source
     of ``fn``'s package, the torch and Python versions and the processor. A later process with the same name loads
     it (under a second, instead of tens of seconds of tracing and compiling); torch's own cache
@@ -89,6 +90,8 @@ class CachedRowwiseCompile:
 
     def __call__(self, *args: Any) -> Any:
         first = _first_tensor(args)
+        if torch.is_inference_mode_enabled() or first.is_inference():
+            return self._outside_inference_mode(args)
         # torch's thread count (its kernels are built for it) and grad mode are part of what a compilation guards.
         signature = (first.dtype, first.device, torch.get_num_threads(), torch.is_grad_enabled())
         compiled = self._compiled.get(signature)
@@ -103,6 +106,16 @@ class CachedRowwiseCompile:
         compiled, result = self._load_or_compile(signature, args)
         self._compiled[signature] = compiled
         return result
+
+    def _outside_inference_mode(self, args: tuple) -> Any:
+        """A call under ``torch.inference_mode`` (a user's evaluation), or on tensors made there: the compilation's
+        guards check each argument's dispatch keys, which an inference tensor lacks, so such a call would fail
+        them and fall back to eager, or in a later process replace the kept file. It runs outside inference mode
+        and without gradients instead, its inference tensors copied: the no-grad compilation, the same results."""
+        with torch.inference_mode(False), torch.no_grad():
+            ordinary = pytree.tree_map_only(
+                torch.Tensor, lambda tensor: tensor.clone() if tensor.is_inference() else tensor, args)
+            return self(*ordinary)
 
     # ------------------------------------------------------------------ the disk cache
     def cache_file(self, signature: tuple) -> Path | None:

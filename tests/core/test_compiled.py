@@ -181,3 +181,26 @@ def test_a_compilation_that_cannot_be_saved_is_still_used(cache, monkeypatch):
         _assert_matches_eager(function, 8)
     assert not list(cache.glob("*.bin")) and not list(cache.glob("*.partial"))  # no half-written file left
     _assert_matches_eager(function, 16)  # compiled, in memory
+
+
+def test_inference_mode_uses_the_no_grad_compilation(cache):
+    """A user's evaluation under torch.inference_mode makes inference tensors, whose dispatch keys a compilation's
+    guards check: calls in that mode, or on its tensors afterwards, must neither fall back to eager nor compile
+    again, and give the no-grad compilation's results."""
+    function = CachedRowwiseCompile(_rowwise, "the test function", key="inference")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "could not be used", no "failed ... running eagerly"
+        with torch.inference_mode():
+            _assert_matches_eager(function, 8)  # its arguments are made in inference mode
+            made_there = _rows(8, seed=3)
+        with torch.no_grad():
+            _assert_matches_eager(function, 8)
+            results = function(*made_there, 0.5)
+        assert not any(result.is_inference() for result in results)
+        for result, expected in zip(results, _rowwise(*made_there, 0.5), strict=True):
+            torch.testing.assert_close(result, expected)
+        again = CachedRowwiseCompile(_rowwise, "the test function", key="inference")
+        with torch.inference_mode():
+            _assert_matches_eager(again, 8)
+    assert again.loaded_from is not None
+    assert len(list(cache.glob("*.bin"))) == 1
