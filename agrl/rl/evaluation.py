@@ -65,7 +65,7 @@ def run_episodes(
     a large evaluation would cost hundreds of megabytes).
     """
     if trajectories < 0:
-        raise ValueError(f"trajectories={trajectories}: the number of episodes whose paths are kept, >= 0")
+        raise ValueError(f"trajectories={trajectories} is not allowed: an integer >= 0 (episodes whose paths are kept)")
     td = env.reset(reset) if reset is not None else env.reset()
     count = env.batch_size.numel()
     traced = min(trajectories, count)

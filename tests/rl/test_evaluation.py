@@ -165,7 +165,7 @@ def test_run_episodes_keeps_the_paths_of_the_first_episodes_only(params, actor):
     assert torch.equal(more.trajectory_aircraft, every.trajectory_aircraft)
     none = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor)
     assert none.trajectory_aircraft is None and none.trajectory_destination is None
-    with pytest.raises(ValueError, match="trajectories=-1"):
+    with pytest.raises(ValueError, match=r"^trajectories=-1 is not allowed: an integer >= 0"):
         run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, trajectories=-1)
 
 
@@ -209,14 +209,12 @@ def test_run_episodes_flies_the_episodes_of_the_env_step_with_the_compiled_simul
     """With the compiled simulator a row's result depends on its place in the batch unless the batch is a whole
     number of vectors (run_episodes pads it to a multiple of ROW_MULTIPLE): the shipped agent's 1008 episodes, whose
     rows leave one by one, against TorchRL's step of the whole batch of 1008 (a multiple of 16 rows)."""
-    from agrl.config.records import saved_agent_config, saved_guidance_parameters
     from agrl.rl.models import load_agent
 
     actor, saved, _ = load_agent("baseline")
-    params = saved_guidance_parameters(saved, compile=True)
-    observation = saved_agent_config(saved).observation
+
     def episodes() -> GuidanceEnv:
-        return GuidanceEnv(params, num_envs=1008, seed=11, observation=observation)
+        return GuidanceEnv.for_saved_agent(saved, 1008, seed=11, compile=True)
 
     result = run_episodes(episodes(), actor, trajectories=1008)
     assert len(set(result.decisions.tolist())) > 20
