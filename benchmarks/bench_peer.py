@@ -16,7 +16,10 @@ compiled, :class:`agrl.rl.ppo.CompiledLoss`), and its ratio.
 ``--trainers ... floor`` adds a line: the same arithmetic with nothing around it (:func:`bench_floor`),
 plain PyTorch with no TensorDict, no loss module, no collector and no environment bookkeeping. It bounds what
 any trainer can reach on equal work on this machine, so a ``ratio_floor_over_sb3`` line says how far ahead of
-stable-baselines3 equal work can be at all.
+stable-baselines3 equal work can be at all. With the floor, each agrl trainer also gets the two lines of the
+project's speed targets (docs/benchmarks.md): ``ratio_agrl_over_floor`` (its decisions/s over the floor's; the
+target is 0.9 or more) and ``collection_time_agrl_over_floor`` (its collection's seconds over the floor's; the
+target is 1.3 or less), ``agrl_compiled`` in both names for the compiled loss.
 
 stable-baselines3 is the ``bench`` extra (``pip install -e '.[bench]'``; it leaves torch alone). It
 sees the env through :class:`Sb3VectorEnv`, a thin adapter from
@@ -287,11 +290,23 @@ TRAINERS = {"agrl": bench_agrl, "agrl-compiled": functools.partial(bench_agrl, c
             "stable-baselines3": bench_sb3, "floor": bench_floor}
 
 
-def _ratio(name: str, numerator: dict, sb3: dict, args, threads: int, load: float) -> dict:
-    return {"name": name, "value": round(numerator["decisions_per_second"] / sb3["decisions_per_second"], 3),
-            "unit": "x", "update_ratio": round(sb3["update_s"] / numerator["update_s"], 3),
-            "collection_ratio": round(sb3["collection_s"] / numerator["collection_s"], 3),
-            "num_envs": args.num_envs, "steps": args.steps, "compile": args.compile, "threads": threads,
+def _ratio(name: str, numerator: dict, reference: dict, args, threads: int, load: float) -> dict:
+    """``numerator``'s decisions/s over ``reference``'s, and per part the reference's seconds over its own (speed
+    ratios: above 1 is faster than the reference)."""
+    return {"name": name, "value": round(numerator["decisions_per_second"] / reference["decisions_per_second"], 3),
+            "unit": "x", "update_ratio": round(reference["update_s"] / numerator["update_s"], 3),
+            "collection_ratio": round(reference["collection_s"] / numerator["collection_s"], 3),
+            **_sitting(args, threads, load)}
+
+
+def _collection_time_ratio(name: str, numerator: dict, floor: dict, args, threads: int, load: float) -> dict:
+    """``numerator``'s collection seconds over the floor's (a time ratio, as the collection target is stated)."""
+    return {"name": name, "value": round(numerator["collection_s"] / floor["collection_s"], 3), "unit": "x time",
+            **_sitting(args, threads, load)}
+
+
+def _sitting(args, threads: int, load: float) -> dict:
+    return {"num_envs": args.num_envs, "steps": args.steps, "compile": args.compile, "threads": threads,
             "load_average_1min_at_start": round(load, 2), "load_average_1min_at_end": round(os.getloadavg()[0], 2)}
 
 
@@ -334,6 +349,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                 name = f"ratio_{trainer.replace('-', '_')}_over_sb3"
                 print(json.dumps(_ratio(name, records[trainer], records["stable-baselines3"], args,
                                         torch.get_num_threads(), load)), flush=True)
+    if "floor" in records:  # the speed targets (docs/benchmarks.md)
+        for trainer in ("agrl", "agrl-compiled"):
+            if trainer in records:
+                label = trainer.replace("-", "_")
+                print(json.dumps(_ratio(f"ratio_{label}_over_floor", records[trainer], records["floor"], args,
+                                        torch.get_num_threads(), load)), flush=True)
+                print(json.dumps(_collection_time_ratio(f"collection_time_{label}_over_floor", records[trainer],
+                                                        records["floor"], args, torch.get_num_threads(), load)),
+                      flush=True)
     return 0
 
 

@@ -158,8 +158,9 @@ def test_iteration_record_reports_the_median_split():
 
 def test_peer_benchmark_prints_the_split_for_each_trainer_and_the_ratios(benchmark_runs):
     """``python -m benchmarks.bench_peer`` at a tiny geometry: one iteration line per trainer (agrl, SB3 and the
-    plain PyTorch floor), then each one's ratio to SB3. With the compiled loss too: the slow test below (its
-    compilation takes longer than the rest of the run; the compiled loss itself is tests/rl/test_ppo.py's)."""
+    plain PyTorch floor), then each one's ratio to SB3, then agrl's two speed-target lines against the floor. With
+    the compiled loss too: the slow test below (its compilation takes longer than the rest of the run; the compiled
+    loss itself is tests/rl/test_ppo.py's)."""
     pytest.importorskip("stable_baselines3")
     assert_peer_records(benchmark_runs["peer"], ["agrl", "stable-baselines3", "floor"])
 
@@ -178,8 +179,14 @@ def assert_peer_records(completed: subprocess.CompletedProcess, trainers: list[s
     records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
     compared = [name for name in trainers if PEER_TRAINERS[name][1] is not None]
     iterations, ratios = records[:len(trainers)], records[len(trainers):]
+    agrl_trainers = [name for name in ("agrl", "agrl-compiled") if name in trainers]
+    targets = ratios[len(compared):]  # with the floor: each agrl trainer's two target lines
+    ratios = ratios[:len(compared)]
     assert [record["name"] for record in iterations] == ["ppo_iteration_seconds"] * len(trainers)
     assert [record["name"] for record in ratios] == [PEER_TRAINERS[name][1] for name in compared]
+    expected_targets = [f"{kind}_{name.replace('-', '_')}_over_floor" for name in agrl_trainers
+                        for kind in ("ratio", "collection_time")] if "floor" in trainers else []
+    assert [record["name"] for record in targets] == expected_targets
     assert [record["trainer"] for record in iterations] == [PEER_TRAINERS[name][0] for name in trainers]
     for record in iterations:
         assert record["decisions_per_iteration"] == 128 and record["iterations_timed"] == 2
@@ -192,6 +199,16 @@ def assert_peer_records(completed: subprocess.CompletedProcess, trainers: list[s
         expected = trainer["decisions_per_second"] / sb3["decisions_per_second"]
         assert ratio["value"] == pytest.approx(expected, rel=1e-2) and ratio["threads"] == 1
         assert ratio["update_ratio"] == pytest.approx(sb3["update_s"] / trainer["update_s"], rel=1e-2)
+    if "floor" in trainers:
+        floor = by_name["floor"]
+        pairs = zip(targets[::2], targets[1::2], strict=True)
+        for name, (speed, collection_time) in zip(agrl_trainers, pairs, strict=True):
+            trainer = by_name[name]
+            assert speed["value"] == pytest.approx(
+                trainer["decisions_per_second"] / floor["decisions_per_second"], rel=1e-2)
+            assert speed["collection_ratio"] == pytest.approx(floor["collection_s"] / trainer["collection_s"], rel=1e-2)
+            assert collection_time["value"] == pytest.approx(trainer["collection_s"] / floor["collection_s"], rel=1e-2)
+            assert collection_time["unit"] == "x time" and collection_time["threads"] == 1
 
 
 def test_race_prints_both_trainers_evaluations_and_results(benchmark_runs):
