@@ -6,9 +6,11 @@ epochs, learning rate, gamma, clip, GAE lambda, entropy and value coefficients, 
 sizes from the composed config), one after the other in the same process, and each reports the median
 **seconds of one PPO iteration**, split into collection and update (the epochs of minibatches; GAE is in
 SB3's collection and in agrl's update), from its second iteration on (the first one carries start-up and,
-with ``--compile``, the ``torch.compile`` of the simulation step). Prints one ``ppo_iteration_seconds``
-line per trainer and a ``ratio`` line (agrl's decisions/s over stable-baselines3's; ``update_ratio`` and
-``collection_ratio`` per part).
+with ``--compile``, the ``torch.compile`` of the simulation step). The trainers' iterations alternate (one of
+each in turn, ``--iterations`` rounds), so a machine whose speed drifts during the run slows them alike, and each
+ratio is the median over rounds of the two trainers' ratio in that round. Prints one ``ppo_iteration_seconds``
+line per trainer (with each round's seconds) and a ``ratio`` line (agrl's decisions/s over stable-baselines3's;
+``update_ratio`` and ``collection_ratio`` per part).
 
 ``--trainers ... agrl-compiled`` adds agrl with ``ppo.compile_loss=true`` (the loss's forward and backward
 compiled, :class:`agrl.rl.ppo.CompiledLoss`), and its ratio.
@@ -43,7 +45,7 @@ import statistics
 import sys
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -111,30 +113,36 @@ def make_sb3_vector_env(num_envs: int, compile: bool, seed: int, **task):
 
 def iteration_record(trainer: str, collection: list[float], update: list[float], decisions: int) -> dict:
     """Median seconds of one PPO iteration's collection and update (GAE falls in SB3's collection and in
-    agrl's update, where the trainer computes it: a few hundredths of a second either way)."""
+    agrl's update, where the trainer computes it: a few hundredths of a second either way), and each timed
+    iteration's (``collection_each_s``, ``update_each_s``, in the order run)."""
     collection_s, update_s = statistics.median(collection), statistics.median(update)
     total = statistics.median(c + u for c, u in zip(collection, update, strict=True))
     return {"name": "ppo_iteration_seconds", "trainer": trainer, "value": round(total, 3), "unit": "s/iteration",
             "collection_s": round(collection_s, 3), "update_s": round(update_s, 3),
             "decisions_per_second": round(decisions / total, 1), "decisions_per_iteration": decisions,
-            "iterations_timed": len(collection)}
+            "iterations_timed": len(collection), "collection_each_s": [round(c, 6) for c in collection],
+            "update_each_s": [round(u, 6) for u in update]}
 
 
-def bench_sb3(num_envs: int, steps: int, minibatch: int, iterations: int, compile: bool, seed: int,
-              task: dict) -> dict:
-    """Train SB3 PPO for ``iterations`` rollouts + updates after a warm-up one; the median split of an iteration."""
+#: A trainer's iterations: a generator that builds the trainer, then times one PPO iteration per ``next()``,
+#: yielding its (collection, update) seconds (the first one carries start-up and compilation).
+Iterations = Iterator[tuple[float, float]]
+
+
+def bench_sb3(num_envs: int, steps: int, minibatch: int, compile: bool, seed: int, task: dict) -> Iterations:
+    """SB3 PPO, one rollout and update per ``model.learn`` call (``reset_num_timesteps=False``: it goes on)."""
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
 
-    marks: list[tuple[str, float]] = []
+    marks: dict[str, float] = {}
 
     class IterationClock(BaseCallback):
         def _on_rollout_start(self) -> None:
-            marks.append(("start", time.perf_counter()))
+            marks["start"] = time.perf_counter()
 
         def _on_rollout_end(self) -> None:  # SB3 calls it after its GAE: GAE counts as collection here
-            marks.append(("end", time.perf_counter()))
+            marks["end"] = time.perf_counter()
 
         def _on_step(self) -> bool:
             return True
@@ -154,20 +162,18 @@ def bench_sb3(num_envs: int, steps: int, minibatch: int, iterations: int, compil
                        "activation_fn": activation},
         verbose=0,
     )
-    model.learn(total_timesteps=(iterations + 2) * num_envs * steps, callback=IterationClock())
-    env.close()
-    starts = [when for kind, when in marks if kind == "start"]
-    # Rollout i runs from starts[i] to its end mark; its update runs from there to starts[i + 1].
-    # The first iteration carries start-up (and the simulator's compilation); it is left out.
-    collection = [starts[i + 1] - starts[i] for i in range(1, len(starts) - 1)]
-    ends = [when for kind, when in marks if kind == "end"]
-    update = [starts[i + 1] - ends[i] for i in range(1, len(starts) - 1)]
-    collection = [c - u for c, u in zip(collection, update, strict=True)]
-    return iteration_record("stable-baselines3", collection, update, num_envs * steps)
+    clock = IterationClock()
+    try:
+        while True:
+            model.learn(total_timesteps=num_envs * steps, callback=clock, reset_num_timesteps=False)
+            done = time.perf_counter()
+            yield marks["end"] - marks["start"], done - marks["end"]
+    finally:
+        env.close()
 
 
-def bench_agrl(num_envs: int, steps: int, minibatch: int, iterations: int, compile: bool, seed: int,
-               task: dict, compile_loss: bool = False) -> dict:
+def bench_agrl(num_envs: int, steps: int, minibatch: int, compile: bool, seed: int, task: dict,
+               compile_loss: bool = False) -> Iterations:
     """agrl's Trainer (the one ``python -m agrl.train`` runs) with the same geometry: collection + GAE, update.
     ``compile_loss``: with ``ppo.compile_loss=true`` (its compilation falls in the warm-up iteration)."""
     from agrl.config import compose_config, load_config
@@ -182,21 +188,18 @@ def bench_agrl(num_envs: int, steps: int, minibatch: int, iterations: int, compi
     with tempfile.TemporaryDirectory() as folder:
         trainer = Trainer(config, Path(folder))
         batches = iter(trainer.collector)
-        collection, update = [], []
-        for _ in range(iterations + 1):
-            start = time.perf_counter()
-            data = next(batches)
-            middle = time.perf_counter()
-            trainer.learn(data)
-            collection.append(middle - start)
-            update.append(time.perf_counter() - middle)
-        trainer.collector.shutdown()
-    return iteration_record("agrl (compiled loss)" if compile_loss else "agrl", collection[1:], update[1:],
-                            num_envs * steps)
+        try:
+            while True:
+                start = time.perf_counter()
+                data = next(batches)
+                middle = time.perf_counter()
+                trainer.learn(data)
+                yield middle - start, time.perf_counter() - middle
+        finally:
+            trainer.collector.shutdown()
 
 
-def bench_floor(num_envs: int, steps: int, minibatch: int, iterations: int, compile: bool, seed: int,
-                task: dict) -> dict:
+def bench_floor(num_envs: int, steps: int, minibatch: int, compile: bool, seed: int, task: dict) -> Iterations:
     """The iteration's arithmetic alone, in plain PyTorch: a lower bound for any trainer of the same work.
 
     Collection: per decision, the observation (:func:`agrl.core.observation.policy_observation`), the actor's
@@ -275,33 +278,60 @@ def bench_floor(num_envs: int, steps: int, minibatch: int, iterations: int, comp
                 torch.nn.utils.clip_grad_norm_(parameters, ppo.max_grad_norm)
                 optimizer.step()
 
-    collection, update_time = [], []
-    for _ in range(iterations + 1):  # the first one carries the simulator's compilation: left out
+    while True:
         start = time.perf_counter()
         batch = collect()
         middle = time.perf_counter()
         update(*batch)
-        collection.append(middle - start)
-        update_time.append(time.perf_counter() - middle)
-    return iteration_record("floor (plain PyTorch)", collection[1:], update_time[1:], num_envs * steps)
+        yield middle - start, time.perf_counter() - middle
 
 
-TRAINERS = {"agrl": bench_agrl, "agrl-compiled": functools.partial(bench_agrl, compile_loss=True),
-            "stable-baselines3": bench_sb3, "floor": bench_floor}
+#: {--trainers name: (its iterations, the trainer its record names)}.
+TRAINERS = {"agrl": (bench_agrl, "agrl"),
+            "agrl-compiled": (functools.partial(bench_agrl, compile_loss=True), "agrl (compiled loss)"),
+            "stable-baselines3": (bench_sb3, "stable-baselines3"),
+            "floor": (bench_floor, "floor (plain PyTorch)")}
+
+
+def alternate(trainers: dict[str, Iterations], rounds: int) -> dict[str, tuple[list[float], list[float]]]:
+    """One warm-up iteration of each trainer (not kept), then ``rounds`` rounds of one iteration of each in turn:
+    {name: (collection seconds, update seconds), one per round}."""
+    timed = {name: ([], []) for name in trainers}
+    for iterations in trainers.values():
+        next(iterations)  # start-up and compilation
+    for _ in range(rounds):
+        for name, iterations in trainers.items():
+            collection, update = next(iterations)
+            timed[name][0].append(collection)
+            timed[name][1].append(update)
+    return timed
+
+
+def _paired(numerator: dict, reference: dict, part: str) -> float:
+    """The median over rounds of ``reference``'s seconds over ``numerator``'s, for ``part``: "collection",
+    "update" or "total" (a speed ratio: above 1 is faster than the reference)."""
+    def seconds(record: dict, index: int) -> float:
+        if part == "total":
+            return record["collection_each_s"][index] + record["update_each_s"][index]
+        return record[f"{part}_each_s"][index]
+
+    rounds = range(numerator["iterations_timed"])
+    return statistics.median(seconds(reference, i) / seconds(numerator, i) for i in rounds)
 
 
 def _ratio(name: str, numerator: dict, reference: dict, args, threads: int, load: float) -> dict:
-    """``numerator``'s decisions/s over ``reference``'s, and per part the reference's seconds over its own (speed
-    ratios: above 1 is faster than the reference)."""
-    return {"name": name, "value": round(numerator["decisions_per_second"] / reference["decisions_per_second"], 3),
-            "unit": "x", "update_ratio": round(reference["update_s"] / numerator["update_s"], 3),
-            "collection_ratio": round(reference["collection_s"] / numerator["collection_s"], 3),
+    """``numerator``'s decisions/s over ``reference``'s, and per part its speed over the reference's, each the
+    median of the rounds' ratios (:func:`_paired`)."""
+    return {"name": name, "value": round(_paired(numerator, reference, "total"), 3), "unit": "x",
+            "update_ratio": round(_paired(numerator, reference, "update"), 3),
+            "collection_ratio": round(_paired(numerator, reference, "collection"), 3),
             **_sitting(args, threads, load)}
 
 
 def _collection_time_ratio(name: str, numerator: dict, floor: dict, args, threads: int, load: float) -> dict:
-    """``numerator``'s collection seconds over the floor's (a time ratio, as the collection target is stated)."""
-    return {"name": name, "value": round(numerator["collection_s"] / floor["collection_s"], 3), "unit": "x time",
+    """``numerator``'s collection seconds over the floor's (a time ratio, as the collection target is stated),
+    the median of the rounds' ratios."""
+    return {"name": name, "value": round(1 / _paired(numerator, floor, "collection"), 3), "unit": "x time",
             **_sitting(args, threads, load)}
 
 
@@ -315,7 +345,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--num-envs", type=int, default=512)
     parser.add_argument("--steps", type=int, default=64, help="decisions per env per iteration")
     parser.add_argument("--minibatch", type=int, default=512, help="minibatch size (default 512, Table 2)")
-    parser.add_argument("--iterations", type=int, default=4, help="timed iterations per trainer (after one warm-up)")
+    parser.add_argument("--iterations", type=int, default=4,
+                        help="timed iterations per trainer (after one warm-up), in rounds of one of each")
     parser.add_argument("--compile", action=argparse.BooleanOptionalAction, default=True,
                         help="fuse the simulation step with torch.compile in both (default on, as training)")
     parser.add_argument("--threads", type=int, default=None, help="torch threads for both (default torch's)")
@@ -337,12 +368,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         torch.set_num_threads(args.threads)
     task = {"task": args.task}
     load = os.getloadavg()[0]
+    iterations = {name: TRAINERS[name][0](args.num_envs, args.steps, args.minibatch, args.compile, args.seed, task)
+                  for name in dict.fromkeys(args.trainers)}
+    try:
+        timed = alternate(iterations, args.iterations)
+    finally:
+        for trainer in iterations.values():
+            trainer.close()  # each trainer's own shutdown (collectors, envs)
     records = {}
-    for trainer in args.trainers:
-        records[trainer] = {**TRAINERS[trainer](args.num_envs, args.steps, args.minibatch, args.iterations,
-                                                args.compile, args.seed, task),
-                            "shape": f"{args.num_envs}x{args.steps}"}  # envs x decisions each, per iteration
-        print(json.dumps(records[trainer]), flush=True)
+    for name, (collection, update) in timed.items():
+        records[name] = {**iteration_record(TRAINERS[name][1], collection, update, args.num_envs * args.steps),
+                         "shape": f"{args.num_envs}x{args.steps}"}  # envs x decisions each, per iteration
+        print(json.dumps(records[name]), flush=True)
     if "stable-baselines3" in records:
         for trainer in ("agrl", "agrl-compiled", "floor"):
             if trainer in records:
