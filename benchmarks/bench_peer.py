@@ -3,7 +3,7 @@
 Both train on the same batched simulator with the same batch geometry (``--num-envs`` 512 envs x
 ``--steps`` 64 decisions per iteration, ``--minibatch`` 512) and the training defaults of ``conf/`` (SB3 takes
 epochs, learning rate, gamma, clip, GAE lambda, entropy and value coefficients, gradient norm and the network
-sizes from the composed config), one after the other in the same process, and each reports the median
+sizes from the composed config), in the same process, and each reports the median
 **seconds of one PPO iteration**, split into collection and update (the epochs of minibatches; GAE is in
 SB3's collection and in agrl's update), from its second iteration on (the first one carries start-up and,
 with ``--compile``, the ``torch.compile`` of the simulation step). The trainers' iterations alternate (one of
