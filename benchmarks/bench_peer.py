@@ -23,6 +23,11 @@ project's speed targets (docs/benchmarks.md): ``ratio_agrl_over_floor`` (its dec
 target is 0.9 or more) and ``collection_time_agrl_over_floor`` (its collection's seconds over the floor's; the
 target is 1.3 or less), ``agrl_compiled`` in both names for the compiled loss.
 
+``--set KEY=VALUE ...`` overrides ``conf/``'s ``agent.*`` and ``ppo.*`` for every trainer alike (networks,
+epochs, rates; not the batch geometry, which the options above set), so the iteration of another recipe can be
+compared, e.g. ``make train``'s: ``--num-envs 2048 --steps 16 --minibatch 4096 --set 'agent.actor_hidden=[64,64]'
+'agent.critic_hidden=[64,64]'``. The lines then carry the ``settings``.
+
 stable-baselines3 is the ``bench`` extra (``pip install -e '.[bench]'``; it leaves torch alone). It
 sees the env through :class:`Sb3VectorEnv`, a thin adapter from
 :class:`agrl.envs.gym_vector.GuidanceVectorEnv` (same-step autoreset) to its ``VecEnv`` interface.
@@ -129,8 +134,10 @@ def iteration_record(trainer: str, collection: list[float], update: list[float],
 Iterations = Iterator[tuple[float, float]]
 
 
-def bench_sb3(num_envs: int, steps: int, minibatch: int, compile: bool, seed: int, task: dict) -> Iterations:
-    """SB3 PPO, one rollout and update per ``model.learn`` call (``reset_num_timesteps=False``: it goes on)."""
+def bench_sb3(num_envs: int, steps: int, minibatch: int, compile: bool, seed: int, task: dict,
+              settings: Sequence[str] = ()) -> Iterations:
+    """SB3 PPO, one rollout and update per ``model.learn`` call (``reset_num_timesteps=False``: it goes on);
+    its PPO settings and networks from ``conf/`` with the ``settings`` overrides."""
     import torch
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
@@ -149,7 +156,7 @@ def bench_sb3(num_envs: int, steps: int, minibatch: int, compile: bool, seed: in
 
     from agrl.config import compose_config, load_config
 
-    config = load_config(compose_config(f"task={task['task']}"))  # agrl's training defaults, conf/
+    config = load_config(compose_config(f"task={task['task']}", *settings))  # agrl's training config, conf/
     ppo, agent = config.ppo, config.agent
     activation = {"tanh": torch.nn.Tanh, "relu": torch.nn.ReLU, "elu": torch.nn.ELU}[agent.activation]
     env = make_sb3_vector_env(num_envs, compile, seed, **task)
@@ -173,9 +180,9 @@ def bench_sb3(num_envs: int, steps: int, minibatch: int, compile: bool, seed: in
 
 
 def bench_agrl(num_envs: int, steps: int, minibatch: int, compile: bool, seed: int, task: dict,
-               compile_loss: bool = False) -> Iterations:
-    """agrl's Trainer (the one ``python -m agrl.train`` runs) with the same geometry: collection + GAE, update.
-    ``compile_loss``: with ``ppo.compile_loss=true`` (its compilation falls in the warm-up iteration)."""
+               settings: Sequence[str] = (), compile_loss: bool = False) -> Iterations:
+    """agrl's Trainer (the one ``python -m agrl.train`` runs) with the same geometry and ``settings``: collection +
+    GAE, update. ``compile_loss``: with ``ppo.compile_loss=true`` (its compilation falls in the warm-up iteration)."""
     from agrl.config import compose_config, load_config
     from agrl.rl.trainer import Trainer
 
@@ -183,6 +190,7 @@ def bench_agrl(num_envs: int, steps: int, minibatch: int, compile: bool, seed: i
         f"task={task['task']}", f"ppo.num_envs={num_envs}", f"ppo.steps_per_env={steps}",
         f"ppo.minibatch_size={minibatch}", "curriculum.enabled=false", "progress=false",
         f"seed={seed}", f"simulation.compile={str(compile).lower()}", f"ppo.compile_loss={str(compile_loss).lower()}",
+        *settings,
     ]
     config = load_config(compose_config(*overrides))
     with tempfile.TemporaryDirectory() as folder:
@@ -199,7 +207,8 @@ def bench_agrl(num_envs: int, steps: int, minibatch: int, compile: bool, seed: i
             trainer.collector.shutdown()
 
 
-def bench_floor(num_envs: int, steps: int, minibatch: int, compile: bool, seed: int, task: dict) -> Iterations:
+def bench_floor(num_envs: int, steps: int, minibatch: int, compile: bool, seed: int, task: dict,
+                settings: Sequence[str] = ()) -> Iterations:
     """The iteration's arithmetic alone, in plain PyTorch: a lower bound for any trainer of the same work.
 
     Collection: per decision, the observation (:func:`agrl.core.observation.policy_observation`), the actor's
@@ -220,7 +229,7 @@ def bench_floor(num_envs: int, steps: int, minibatch: int, compile: bool, seed: 
     from agrl.envs.guidance import NUM_ACTIONS
     from agrl.rl.models import ACTIVATIONS
 
-    config = load_config(compose_config(f"task={task['task']}"))
+    config = load_config(compose_config(f"task={task['task']}", *settings))
     ppo, agent = config.ppo, config.agent
     params = guidance_parameters(f"task={task['task']}", compile=compile)
     simulation = params.simulation
@@ -286,6 +295,9 @@ def bench_floor(num_envs: int, steps: int, minibatch: int, compile: bool, seed: 
         yield middle - start, time.perf_counter() - middle
 
 
+#: The keys each trainer's config gets from the command's own options, which ``--set`` may not change.
+BENCH_SET_KEYS = ("ppo.num_envs", "ppo.steps_per_env", "ppo.minibatch_size", "ppo.compile_loss")
+
 #: {--trainers name: (its iterations, the trainer its record names)}.
 TRAINERS = {"agrl": (bench_agrl, "agrl"),
             "agrl-compiled": (functools.partial(bench_agrl, compile_loss=True), "agrl (compiled loss)"),
@@ -337,6 +349,7 @@ def _collection_time_ratio(name: str, numerator: dict, floor: dict, args, thread
 
 def _sitting(args, threads: int, load: float) -> dict:
     return {"num_envs": args.num_envs, "steps": args.steps, "compile": args.compile, "threads": threads,
+            **({"settings": args.set} if args.set else {}),
             "load_average_1min_at_start": round(load, 2), "load_average_1min_at_end": round(os.getloadavg()[0], 2)}
 
 
@@ -355,7 +368,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "ppo.compile_loss=true; floor: the same arithmetic in plain PyTorch, a lower bound)")
     parser.add_argument("--task", default="fixed")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE",
+                        help="Hydra overrides of conf/'s agent.* and ppo.* for every trainer (networks, epochs, "
+                             "rates), e.g. --set 'agent.actor_hidden=[64,64]' 'agent.critic_hidden=[64,64]'")
     args = parser.parse_args(argv)
+    for setting in args.set:
+        key = setting.split("=", 1)[0]
+        if "=" not in setting or not key.startswith(("agent.", "ppo.")) or key in BENCH_SET_KEYS:
+            parser.error(f"--set {setting} is not allowed: KEY=VALUE with an agent.* or ppo.* key other than "
+                         f"{', '.join(BENCH_SET_KEYS)} (--num-envs, --steps, --minibatch and --trainers set those)")
     for name in ("num_envs", "steps", "minibatch", "iterations"):
         if getattr(args, name) < 1 or (name == "iterations" and args.iterations < 2):
             parser.error(f"--{name.replace('_', '-')}={getattr(args, name)} is not allowed: a positive integer "
@@ -368,7 +389,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         torch.set_num_threads(args.threads)
     task = {"task": args.task}
     load = os.getloadavg()[0]
-    iterations = {name: TRAINERS[name][0](args.num_envs, args.steps, args.minibatch, args.compile, args.seed, task)
+    iterations = {name: TRAINERS[name][0](args.num_envs, args.steps, args.minibatch, args.compile, args.seed, task,
+                                          settings=tuple(args.set))
                   for name in dict.fromkeys(args.trainers)}
     try:
         timed = alternate(iterations, args.iterations)
@@ -378,7 +400,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     records = {}
     for name, (collection, update) in timed.items():
         records[name] = {**iteration_record(TRAINERS[name][1], collection, update, args.num_envs * args.steps),
-                         "shape": f"{args.num_envs}x{args.steps}"}  # envs x decisions each, per iteration
+                         "shape": f"{args.num_envs}x{args.steps}",  # envs x decisions each, per iteration
+                         **({"settings": args.set} if args.set else {})}
         print(json.dumps(records[name]), flush=True)
     if "stable-baselines3" in records:
         for trainer in ("agrl", "agrl-compiled", "floor"):

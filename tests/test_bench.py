@@ -34,7 +34,8 @@ PEER_TRAINERS = {"agrl": ("agrl", "ratio_agrl_over_sb3"),
 #: The benchmark runs tested here: {name: ``python -m`` arguments}; the last two need stable-baselines3.
 BENCHMARK_RUNS = {
     "bench": ("benchmarks.bench", "--quick", "--batch-sizes", "8", "32", "--env-batch", "8", "--eval-episodes", "16"),
-    "peer": (*PEER_RUN, "agrl", "stable-baselines3", "floor"),
+    "peer": (*PEER_RUN, "agrl", "stable-baselines3", "floor", "--set", "agent.actor_hidden=[16,16]",
+             "agent.critic_hidden=[16,16]"),
     "race": ("benchmarks.bench_race", "--budget-seconds", "2", "--eval-every", "1", "--eval-episodes", "8",
              "--max-decisions", "4", "--no-compile", "--threads", "1", "--sb3-geometry", "agrl", "--agrl-override",
              "ppo.num_envs=16", "ppo.steps_per_env=4", "ppo.minibatch_size=32"),
@@ -164,7 +165,18 @@ def test_peer_benchmark_prints_the_split_for_each_trainer_and_the_ratios(benchma
     the compiled loss too: the slow test below (its compilation takes longer than the rest of the run; the compiled
     loss itself is tests/rl/test_ppo.py's)."""
     pytest.importorskip("stable_baselines3")
-    assert_peer_records(benchmark_runs["peer"], ["agrl", "stable-baselines3", "floor"])
+    assert_peer_records(benchmark_runs["peer"], ["agrl", "stable-baselines3", "floor"],
+                        settings=["agent.actor_hidden=[16,16]", "agent.critic_hidden=[16,16]"])
+
+
+@pytest.mark.parametrize("setting", ["ppo.num_envs=64", "ppo.compile_loss=true", "reward.gamma=0.9", "ppo.epochs"])
+def test_peer_benchmark_refuses_a_setting_its_options_own_or_outside_agent_and_ppo(setting, capsys):
+    from benchmarks.bench_peer import main
+
+    with pytest.raises(SystemExit) as stopped:
+        main(["--set", setting])
+    assert stopped.value.code == 2
+    assert f"--set {setting} is not allowed: KEY=VALUE with an agent.* or ppo.* key" in capsys.readouterr().err
 
 
 @pytest.mark.slow
@@ -176,9 +188,11 @@ def test_peer_benchmark_with_the_compiled_loss():
     assert_peer_records(completed, trainers)
 
 
-def assert_peer_records(completed: subprocess.CompletedProcess, trainers: list[str]) -> None:
+def assert_peer_records(completed: subprocess.CompletedProcess, trainers: list[str],
+                        settings: list[str] | None = None) -> None:
     assert completed.returncode == 0, completed.stderr
     records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
+    assert all(record.get("settings") == settings for record in records)  # each line says what it measured
     compared = [name for name in trainers if PEER_TRAINERS[name][1] is not None]
     iterations, ratios = records[:len(trainers)], records[len(trainers):]
     agrl_trainers = [name for name in ("agrl", "agrl-compiled") if name in trainers]
@@ -246,7 +260,7 @@ def test_a_ratio_is_the_median_of_the_rounds_ratios():
 
     a = iteration_record("a", [1.0, 2.0, 3.0], [1.0, 2.0, 3.0], decisions=100)
     b = iteration_record("b", [3.0, 2.0, 9.0], [3.0, 2.0, 9.0], decisions=100)
-    args = argparse.Namespace(num_envs=4, steps=25, compile=False)
+    args = argparse.Namespace(num_envs=4, steps=25, compile=False, set=[])
     ratio = _ratio("ratio_a_over_b", a, b, args, threads=1, load=0.0)
     assert ratio["value"] == 3.0 and ratio["update_ratio"] == 3.0 and ratio["collection_ratio"] == 3.0
     assert _collection_time_ratio("collection_time_a_over_b", a, b, args, threads=1, load=0.0)["value"] == 0.333
