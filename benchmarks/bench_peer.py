@@ -319,7 +319,7 @@ def alternate(trainers: dict[str, Iterations], rounds: int) -> dict[str, tuple[l
     return timed
 
 
-def _paired(numerator: dict, reference: dict, part: str) -> float:
+def paired_ratio(numerator: dict, reference: dict, part: str) -> float:
     """The median over rounds of ``reference``'s seconds over ``numerator``'s, for ``part``: "collection",
     "update" or "total" (a speed ratio: above 1 is faster than the reference)."""
     def seconds(record: dict, index: int) -> float:
@@ -331,19 +331,19 @@ def _paired(numerator: dict, reference: dict, part: str) -> float:
     return statistics.median(seconds(reference, i) / seconds(numerator, i) for i in rounds)
 
 
-def _ratio(name: str, numerator: dict, reference: dict, args, threads: int, load: float) -> dict:
+def ratio_record(name: str, numerator: dict, reference: dict, args, threads: int, load: float) -> dict:
     """``numerator``'s decisions/s over ``reference``'s, and per part its speed over the reference's, each the
-    median of the rounds' ratios (:func:`_paired`)."""
-    return {"name": name, "value": round(_paired(numerator, reference, "total"), 3), "unit": "x",
-            "update_ratio": round(_paired(numerator, reference, "update"), 3),
-            "collection_ratio": round(_paired(numerator, reference, "collection"), 3),
+    median of the rounds' ratios (:func:`paired_ratio`)."""
+    return {"name": name, "value": round(paired_ratio(numerator, reference, "total"), 3), "unit": "x",
+            "update_ratio": round(paired_ratio(numerator, reference, "update"), 3),
+            "collection_ratio": round(paired_ratio(numerator, reference, "collection"), 3),
             **_sitting(args, threads, load)}
 
 
-def _collection_time_ratio(name: str, numerator: dict, floor: dict, args, threads: int, load: float) -> dict:
+def collection_time_record(name: str, numerator: dict, floor: dict, args, threads: int, load: float) -> dict:
     """``numerator``'s collection seconds over the floor's (a time ratio, as the collection target is stated),
     the median of the rounds' ratios."""
-    return {"name": name, "value": round(1 / _paired(numerator, floor, "collection"), 3), "unit": "x time",
+    return {"name": name, "value": round(1 / paired_ratio(numerator, floor, "collection"), 3), "unit": "x time",
             **_sitting(args, threads, load)}
 
 
@@ -407,15 +407,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         for trainer in ("agrl", "agrl-compiled", "floor"):
             if trainer in records:
                 name = f"ratio_{trainer.replace('-', '_')}_over_sb3"
-                print(json.dumps(_ratio(name, records[trainer], records["stable-baselines3"], args,
+                print(json.dumps(ratio_record(name, records[trainer], records["stable-baselines3"], args,
                                         torch.get_num_threads(), load)), flush=True)
     if "floor" in records:  # the speed targets (docs/benchmarks.md)
         for trainer in ("agrl", "agrl-compiled"):
             if trainer in records:
                 label = trainer.replace("-", "_")
-                print(json.dumps(_ratio(f"ratio_{label}_over_floor", records[trainer], records["floor"], args,
+                print(json.dumps(ratio_record(f"ratio_{label}_over_floor", records[trainer], records["floor"], args,
                                         torch.get_num_threads(), load)), flush=True)
-                print(json.dumps(_collection_time_ratio(f"collection_time_{label}_over_floor", records[trainer],
+                print(json.dumps(collection_time_record(f"collection_time_{label}_over_floor", records[trainer],
                                                         records["floor"], args, torch.get_num_threads(), load)),
                       flush=True)
     return 0

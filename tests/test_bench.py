@@ -256,14 +256,14 @@ def test_trainers_alternate_after_one_warm_up_each():
 def test_a_ratio_is_the_median_of_the_rounds_ratios():
     """Each round compares two iterations run one after the other; the median of those ratios (3 here) is what a
     ratio line reports, not the ratio of the two medians (1.5), which a machine's drift between rounds moves."""
-    from benchmarks.bench_peer import _collection_time_ratio, _ratio, iteration_record
+    from benchmarks.bench_peer import collection_time_record, iteration_record, ratio_record
 
     a = iteration_record("a", [1.0, 2.0, 3.0], [1.0, 2.0, 3.0], decisions=100)
     b = iteration_record("b", [3.0, 2.0, 9.0], [3.0, 2.0, 9.0], decisions=100)
     args = argparse.Namespace(num_envs=4, steps=25, compile=False, set=[])
-    ratio = _ratio("ratio_a_over_b", a, b, args, threads=1, load=0.0)
+    ratio = ratio_record("ratio_a_over_b", a, b, args, threads=1, load=0.0)
     assert ratio["value"] == 3.0 and ratio["update_ratio"] == 3.0 and ratio["collection_ratio"] == 3.0
-    assert _collection_time_ratio("collection_time_a_over_b", a, b, args, threads=1, load=0.0)["value"] == 0.333
+    assert collection_time_record("collection_time_a_over_b", a, b, args, threads=1, load=0.0)["value"] == 0.333
 
 
 def test_race_prints_both_trainers_evaluations_and_results(benchmark_runs):
