@@ -343,7 +343,7 @@ def ratio_record(name: str, numerator: dict, reference: dict, args, threads: int
 def collection_time_record(name: str, numerator: dict, floor: dict, args, threads: int, load: float) -> dict:
     """``numerator``'s collection seconds over the floor's (a time ratio, as the collection target is stated),
     the median of the rounds' ratios."""
-    return {"name": name, "value": round(1 / paired_ratio(numerator, floor, "collection"), 3), "unit": "x time",
+    return {"name": name, "value": round(paired_ratio(floor, numerator, "collection"), 3), "unit": "x time",
             **_sitting(args, threads, load)}
 
 

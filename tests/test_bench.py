@@ -222,7 +222,7 @@ def assert_peer_records(completed: subprocess.CompletedProcess, trainers: list[s
             trainer = by_name[name]
             assert speed["value"] == pytest.approx(paired(trainer, floor, "total"), abs=1e-3)
             assert speed["collection_ratio"] == pytest.approx(paired(trainer, floor, "collection"), abs=1e-3)
-            assert collection_time["value"] == pytest.approx(1 / paired(trainer, floor, "collection"), abs=1e-3)
+            assert collection_time["value"] == pytest.approx(paired(floor, trainer, "collection"), abs=1e-3)
             assert collection_time["unit"] == "x time" and collection_time["threads"] == 1
 
 
@@ -264,6 +264,12 @@ def test_a_ratio_is_the_median_of_the_rounds_ratios():
     ratio = ratio_record("ratio_a_over_b", a, b, args, threads=1, load=0.0)
     assert ratio["value"] == 3.0 and ratio["update_ratio"] == 3.0 and ratio["collection_ratio"] == 3.0
     assert collection_time_record("collection_time_a_over_b", a, b, args, threads=1, load=0.0)["value"] == 0.333
+    # An even number of rounds: the time ratio is the median of A's seconds over B's (0.5, 0.25, 0.5, 0.25: 0.375),
+    # not the inverse of the speed ratio's median (1 / 3).
+    a = iteration_record("a", [1.0, 1.0, 1.0, 1.0], [1.0, 1.0, 1.0, 1.0], decisions=100)
+    b = iteration_record("b", [2.0, 4.0, 2.0, 4.0], [2.0, 4.0, 2.0, 4.0], decisions=100)
+    assert ratio_record("ratio_a_over_b", a, b, args, threads=1, load=0.0)["value"] == 3.0
+    assert collection_time_record("collection_time_a_over_b", a, b, args, threads=1, load=0.0)["value"] == 0.375
 
 
 def test_race_prints_both_trainers_evaluations_and_results(benchmark_runs):
