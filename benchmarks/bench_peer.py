@@ -217,7 +217,8 @@ def bench_floor(num_envs: int, steps: int, minibatch: int, compile: bool, seed: 
     ``minibatch`` rows through actor and critic (agrl's network sizes and activation, from ``conf/``), the
     clipped PPO objective with normalised advantages, a smooth-L1 value loss and the entropy bonus, gradient
     clipping and fused Adam, as :class:`torchrl.objectives.ClipPPOLoss` and :func:`agrl.rl.ppo.ppo_update`
-    compute them; advantages are random (GAE costs a few milliseconds).
+    compute them; advantages are random: GAE, whose critic pass over the batch is about a tenth of agrl's update at
+    ``make train``'s shape (``python -m benchmarks.profile_iteration``), is left out.
     """
     import torch
     from torchrl.modules import MLP

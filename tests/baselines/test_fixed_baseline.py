@@ -21,7 +21,6 @@ import pytest
 import torch
 
 from agrl.baselines import BASELINE_FILE
-from agrl.config import saved_guidance_parameters
 from agrl.envs.guidance import GuidanceEnv
 from agrl.rl.evaluation import run_episodes, summarise
 from agrl.rl.models import load_agent
@@ -44,12 +43,11 @@ FRESH_EPISODES = 250
 def rerun(request, record):
     """(summary, records) of the baseline, eager simulator: on the record's own episodes, or on fresh ones."""
     actor, saved, _ = load_agent("baseline")
-    params = saved_guidance_parameters(saved, compile=False)
     if request.param == "record":
         episodes, seed = record["episodes"], record["evaluation_seed"]
     else:
         episodes, seed = FRESH_EPISODES, record["evaluation_seed"] + 1
-    env = GuidanceEnv(params, num_envs=episodes, seed=seed)
+    env = GuidanceEnv.for_saved_agent(saved, episodes, seed=seed, compile=False)
     records = run_episodes(env, actor)
     return summarise(records), records
 

@@ -77,13 +77,11 @@ def test_the_student_flies_as_the_teacher_on_states_it_was_not_trained_on(studen
 def test_the_written_student_gives_the_evaluation_in_its_summary(student):
     """The checkpoint, loaded as python -m agrl.evaluate loads it, flies the summary's evaluation episodes
     (seed + 1_000_003) to the same outcomes: the saved weights and observation are the ones evaluated."""
-    from agrl.config import saved_guidance_parameters
     from agrl.rl.evaluation import run_episodes, summarise
 
     path, summary = student
     actor, saved, _ = load_agent(str(path))
-    env = GuidanceEnv(saved_guidance_parameters(saved, compile=False), num_envs=64, seed=1_000_003,
-                      observation=saved_agent_config(saved).observation)
+    env = GuidanceEnv.for_saved_agent(saved, 64, seed=1_000_003, compile=False)
     again = summarise(run_episodes(env, actor))
     assert summary["evaluation"]["episodes"] == again["episodes"] == 64
     assert summary["evaluation"]["outcomes"] == again["outcomes"]
