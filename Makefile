@@ -83,7 +83,7 @@ test-slow: install
 bench: install
 	$(PY) -m benchmarks.bench $(ARGS)
 	$(PY) -m benchmarks.bench_reuse
-	$(PY) -m benchmarks.bench_peer --trainers agrl agrl-compiled stable-baselines3 floor
+	$(PY) -m benchmarks.bench_peer --trainers agrl agrl-compiled stable-baselines3 floor floor-equal-work
 	$(PY) -m benchmarks.startup
 
 lint: install

@@ -15,13 +15,17 @@ line per trainer (with each round's seconds) and a ``ratio`` line (agrl's decisi
 ``--trainers ... agrl-compiled`` adds agrl with ``ppo.compile_loss=true`` (the loss's forward and backward
 compiled, :class:`agrl.rl.ppo.CompiledLoss`), and its ratio.
 
-``--trainers ... floor`` adds a line: the same arithmetic with nothing around it (:func:`bench_floor`),
-plain PyTorch with no TensorDict, no loss module, no collector and no environment bookkeeping. It bounds what
-any trainer can reach on equal work on this machine, so a ``ratio_floor_over_sb3`` line says how far ahead of
-stable-baselines3 equal work can be at all. With the floor, each agrl trainer also gets the two lines of the
-project's speed targets (docs/benchmarks.md): ``ratio_agrl_over_floor`` (its decisions/s over the floor's; the
-target is 0.9 or more) and ``collection_time_agrl_over_floor`` (its collection's seconds over the floor's; the
-target is 1.3 or less), ``agrl_compiled`` in both names for the compiled loss.
+``--trainers ... floor`` adds a line: the simulator, networks and PPO update with nothing around them
+(:func:`bench_floor`), plain PyTorch with no TensorDict, no loss module, no collector, and none of the work of
+rewards, episode ends, resets and GAE: a bound no trainer reaches. With it, each agrl trainer also gets the two
+lines of the project's speed targets (docs/benchmarks.md), which were stated against this floor:
+``ratio_agrl_over_floor`` (its decisions/s over the floor's; the target is 0.9 or more) and
+``collection_time_agrl_over_floor`` (its collection's seconds over the floor's; the target is 1.3 or less),
+``agrl_compiled`` in both names for the compiled loss. ``floor-equal-work`` adds the same floor doing that
+work too, plainly (rewards by the env's own function, fresh starts for the rows that ended only, GAE on one
+critic pass): what a trainer of equal work could reach, and the same two lines against it
+(``..._over_floor_equal_work``). A ``ratio_floor_over_sb3`` line says how far ahead of stable-baselines3 the
+bare arithmetic is.
 
 ``--set KEY=VALUE ...`` overrides ``conf/``'s ``agent.*`` and ``ppo.*`` for every trainer alike (networks,
 epochs, rates; not the batch geometry, which the options above set), so the iteration of another recipe can be
@@ -207,18 +211,58 @@ def bench_agrl(num_envs: int, steps: int, minibatch: int, compile: bool, seed: i
             trainer.collector.shutdown()
 
 
+def plain_gae(rewards, dones, values, gamma: float, lmbda: float):
+    """Generalised advantage estimates and value targets of ``T`` decisions of ``N`` rows in plain PyTorch:
+    ``rewards`` and ``dones`` ``(T, N)``, ``values`` ``(T + 1, N)`` (the critic on each decision's observation and on
+    the one after the last). Every episode end is a termination (agrl's env marks each end ``terminated``), so a
+    done row's next value is not used and its observation there may be the next episode's first."""
+    import torch
+
+    not_done = 1.0 - dones.float()
+    advantages = torch.empty_like(rewards)
+    running = torch.zeros_like(rewards[0])
+    for t in range(rewards.shape[0] - 1, -1, -1):
+        delta = rewards[t] + gamma * values[t + 1] * not_done[t] - values[t]
+        running = delta + gamma * lmbda * not_done[t] * running
+        advantages[t] = running
+    return advantages, advantages + values[:-1]
+
+
+def plain_decision_end(params, decisions, aircraft, destination, last_action, action_before_last, action, result):
+    """The reward and end of a decision ``action`` from (``aircraft``, ``destination``, ``last_action``,
+    ``action_before_last``), the simulator's ``result`` of it, its row's ``decisions`` counted with it, as the env
+    computes them (:meth:`agrl.envs.guidance.GuidanceEnv.complete_transition`), without its bookkeeping:
+    ``(reward, done)``."""
+    import torch
+
+    from agrl.core.reward import step_reward
+    from agrl.core.termination import Outcome
+
+    outcome = torch.where((result.outcome == Outcome.RUNNING) & (decisions >= params.max_decisions),
+                          int(Outcome.BUDGET_EXHAUSTED), result.outcome)
+    reward, _ = step_reward(outcome, aircraft, destination, last_action, action_before_last, action,
+                            result.aircraft_state, result.destination_state, params.reward, action != last_action)
+    return reward, outcome != Outcome.RUNNING
+
+
 def bench_floor(num_envs: int, steps: int, minibatch: int, compile: bool, seed: int, task: dict,
-                settings: Sequence[str] = ()) -> Iterations:
+                settings: Sequence[str] = (), equal_work: bool = False) -> Iterations:
     """The iteration's arithmetic alone, in plain PyTorch: a lower bound for any trainer of the same work.
 
     Collection: per decision, the observation (:func:`agrl.core.observation.policy_observation`), the actor's
     network, a categorical sample and the simulator (:class:`agrl.core.simulation.DecisionSimulator`, compiled
-    as in training); no rewards, resets or storage beyond three tensors. Update: ``epochs`` passes of
-    ``minibatch`` rows through actor and critic (agrl's network sizes and activation, from ``conf/``), the
-    clipped PPO objective with normalised advantages, a smooth-L1 value loss and the entropy bonus, gradient
-    clipping and fused Adam, as :class:`torchrl.objectives.ClipPPOLoss` and :func:`agrl.rl.ppo.ppo_update`
-    compute them; advantages are random: GAE, whose critic pass over the batch is about a tenth of agrl's update at
-    ``make train``'s shape (``python -m benchmarks.profile_iteration``), is left out.
+    as in training). Update: ``epochs`` passes of ``minibatch`` rows through actor and critic (agrl's network
+    sizes and activation, from ``conf/``), the clipped PPO objective with normalised advantages, a smooth-L1 value
+    loss and the entropy bonus, gradient clipping and fused Adam, as :class:`torchrl.objectives.ClipPPOLoss` and
+    :func:`agrl.rl.ppo.ppo_update` compute them.
+
+    ``equal_work=False`` (``--trainers floor``, the floor the speed targets were stated against): no rewards,
+    episode ends or resets, and random advantages (no GAE, whose critic pass over the batch is about a tenth of
+    agrl's update at ``make train``'s shape): less work than a trainer does, so a bound it cannot reach.
+    ``equal_work=True`` (``--trainers floor-equal-work``): what PPO needs of a trainer besides, done plainly:
+    each decision's reward (:func:`agrl.core.reward.step_reward`, the env's) and end (an outcome, or the decision
+    budget), fresh starts for the rows that ended (drawn for those rows only), and in the update GAE
+    (:func:`plain_gae`) on one critic pass over the batch's observations and the last one's successors.
     """
     import torch
     from torchrl.modules import MLP
@@ -232,7 +276,7 @@ def bench_floor(num_envs: int, steps: int, minibatch: int, compile: bool, seed: 
 
     config = load_config(compose_config(f"task={task['task']}", *settings))
     ppo, agent = config.ppo, config.agent
-    params = guidance_parameters(f"task={task['task']}", compile=compile)
+    params = guidance_parameters(f"task={task['task']}", *settings, compile=compile)
     simulation = params.simulation
     generator = torch.Generator().manual_seed(seed)
     torch.manual_seed(seed)
@@ -244,30 +288,69 @@ def bench_floor(num_envs: int, steps: int, minibatch: int, compile: bool, seed: 
     parameters = [*actor.parameters(), *critic.parameters()]
     optimizer = torch.optim.Adam(parameters, lr=ppo.learning_rate, eps=1e-5, fused=True)
     simulator = DecisionSimulator(simulation, params.maneuvers.controls(), compile=compile)
-    destination = torch.tensor(params.destination.start).expand(num_envs, 4).clone()
+    start_of_destination = torch.tensor(params.destination.start)
+    destination = start_of_destination.expand(num_envs, 4).clone()
     speed, turn_rate = params.destination.initial_motion(num_envs, generator, torch.device("cpu"))
+    speed, turn_rate = (torch.as_tensor(value, dtype=torch.float32).expand(num_envs).clone()
+                        for value in (speed, turn_rate))  # per row: restarts write theirs
     aircraft = sample_initial_aircraft(num_envs, params.initial_state, destination, generator)
     last_action = torch.zeros(num_envs, dtype=torch.int64)
+    action_before_last = torch.zeros(num_envs, dtype=torch.int64)
+    decisions = torch.zeros(num_envs, dtype=torch.int64)
 
-    def collect() -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        nonlocal aircraft, destination, last_action
-        observations, actions, log_probs = [], [], []
+    def restart(rows: torch.Tensor) -> None:
+        """New episodes in ``rows`` (equal work): the env's fresh starts, drawn for these rows only."""
+        count = rows.numel()
+        destination[rows] = start_of_destination
+        row_speed, row_turn_rate = params.destination.initial_motion(count, generator, torch.device("cpu"))
+        speed[rows], turn_rate[rows] = row_speed, row_turn_rate
+        aircraft[rows] = sample_initial_aircraft(count, params.initial_state, destination[rows], generator)
+        last_action[rows], action_before_last[rows], decisions[rows] = 0, 0, 0
+
+    def observe() -> torch.Tensor:
+        return policy_observation(aircraft, destination, last_action, simulation.airspace, simulation.limits)
+
+    def collect() -> tuple[torch.Tensor, ...]:
+        nonlocal aircraft, destination, last_action, action_before_last
+        observations, actions, log_probs, rewards, dones = [], [], [], [], []
         with torch.no_grad():
             for _ in range(steps):
-                observation = policy_observation(aircraft, destination, last_action, simulation.airspace,
-                                                 simulation.limits)
+                observation = observe()
                 log_prob = torch.log_softmax(actor(observation), -1)
                 action = torch.multinomial(log_prob.exp(), 1).squeeze(-1)
                 observations.append(observation)
                 actions.append(action)
                 log_probs.append(log_prob.gather(-1, action.unsqueeze(-1)).squeeze(-1))
-                aircraft, destination, _ = simulator(aircraft, destination, speed, turn_rate, action)
-                last_action = action
-        return torch.cat(observations), torch.cat(actions), torch.cat(log_probs)
+                result = simulator(aircraft, destination, speed, turn_rate, action)
+                if equal_work:
+                    decisions.add_(1)
+                    reward, done = plain_decision_end(params, decisions, aircraft, destination, last_action,
+                                                      action_before_last, action, result)
+                    rewards.append(reward)
+                    dones.append(done)
+                aircraft, destination = result.aircraft_state, result.destination_state
+                action_before_last, last_action = last_action, action
+                if equal_work and bool(done.any()):
+                    restart(done.nonzero().squeeze(-1))
+            if equal_work:
+                observations.append(observe())  # the last decision's successors, for its next value
+        if not equal_work:
+            return torch.cat(observations), torch.cat(actions), torch.cat(log_probs)
+        # Observations (T + 1, N, features): GAE's critic pass reads the successors of the last decision too.
+        return torch.stack(observations), torch.cat(actions), torch.cat(log_probs), torch.stack(rewards), \
+            torch.stack(dones)
 
-    def update(observations: torch.Tensor, actions: torch.Tensor, behaviour_log_probs: torch.Tensor) -> None:
+    def update(observations: torch.Tensor, actions: torch.Tensor, behaviour_log_probs: torch.Tensor,
+               rewards: torch.Tensor | None = None, dones: torch.Tensor | None = None) -> None:
+        if equal_work:
+            with torch.no_grad():
+                values = critic(observations).squeeze(-1)
+                advantages, value_targets = plain_gae(rewards, dones, values, config.reward.gamma, ppo.gae_lambda)
+            observations, advantages, value_targets = observations[:-1].flatten(0, 1), advantages.flatten(), \
+                value_targets.flatten()
         rows = len(observations)
-        advantages, value_targets = torch.randn(rows, generator=generator), torch.randn(rows, generator=generator)
+        if not equal_work:
+            advantages, value_targets = torch.randn(rows, generator=generator), torch.randn(rows, generator=generator)
         for _ in range(ppo.epochs):
             order = torch.randperm(rows, generator=generator)
             for start in range(0, rows - minibatch + 1, minibatch):
@@ -303,7 +386,8 @@ BENCH_SET_KEYS = ("ppo.num_envs", "ppo.steps_per_env", "ppo.minibatch_size", "pp
 TRAINERS = {"agrl": (bench_agrl, "agrl"),
             "agrl-compiled": (functools.partial(bench_agrl, compile_loss=True), "agrl (compiled loss)"),
             "stable-baselines3": (bench_sb3, "stable-baselines3"),
-            "floor": (bench_floor, "floor (plain PyTorch)")}
+            "floor": (bench_floor, "floor (plain PyTorch)"),
+            "floor-equal-work": (functools.partial(bench_floor, equal_work=True), "floor, equal work (plain PyTorch)")}
 
 
 def alternate(trainers: dict[str, Iterations], rounds: int) -> dict[str, tuple[list[float], list[float]]]:
@@ -366,7 +450,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--threads", type=int, default=None, help="torch threads for both (default torch's)")
     parser.add_argument("--trainers", nargs="+", choices=tuple(TRAINERS), default=["agrl", "stable-baselines3"],
                         help="which trainers to time (default agrl and stable-baselines3; agrl-compiled: agrl with "
-                             "ppo.compile_loss=true; floor: the same arithmetic in plain PyTorch, a lower bound)")
+                             "ppo.compile_loss=true; floor: the arithmetic in plain PyTorch without rewards, resets "
+                             "or GAE, a lower bound; floor-equal-work: with them)")
     parser.add_argument("--task", default="fixed")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE",
@@ -405,19 +490,21 @@ def main(argv: Sequence[str] | None = None) -> int:
                          **({"settings": args.set} if args.set else {})}
         print(json.dumps(records[name]), flush=True)
     if "stable-baselines3" in records:
-        for trainer in ("agrl", "agrl-compiled", "floor"):
+        for trainer in ("agrl", "agrl-compiled", "floor", "floor-equal-work"):
             if trainer in records:
                 name = f"ratio_{trainer.replace('-', '_')}_over_sb3"
                 print(json.dumps(ratio_record(name, records[trainer], records["stable-baselines3"], args,
                                         torch.get_num_threads(), load)), flush=True)
-    if "floor" in records:  # the speed targets (docs/benchmarks.md)
+    for floor, suffix in (("floor", "floor"), ("floor-equal-work", "floor_equal_work")):
+        if floor not in records:  # "floor": the speed targets (docs/benchmarks.md); the equal-work floor beside them
+            continue
         for trainer in ("agrl", "agrl-compiled"):
             if trainer in records:
                 label = trainer.replace("-", "_")
-                print(json.dumps(ratio_record(f"ratio_{label}_over_floor", records[trainer], records["floor"], args,
-                                        torch.get_num_threads(), load)), flush=True)
-                print(json.dumps(collection_time_record(f"collection_time_{label}_over_floor", records[trainer],
-                                                        records["floor"], args, torch.get_num_threads(), load)),
+                print(json.dumps(ratio_record(f"ratio_{label}_over_{suffix}", records[trainer], records[floor],
+                                              args, torch.get_num_threads(), load)), flush=True)
+                print(json.dumps(collection_time_record(f"collection_time_{label}_over_{suffix}", records[trainer],
+                                                        records[floor], args, torch.get_num_threads(), load)),
                       flush=True)
     return 0
 

@@ -29,12 +29,15 @@ PEER_RUN = ("benchmarks.bench_peer", "--num-envs", "16", "--steps", "8", "--iter
 PEER_TRAINERS = {"agrl": ("agrl", "ratio_agrl_over_sb3"),
                  "agrl-compiled": ("agrl (compiled loss)", "ratio_agrl_compiled_over_sb3"),
                  "stable-baselines3": ("stable-baselines3", None),
-                 "floor": ("floor (plain PyTorch)", "ratio_floor_over_sb3")}
+                 "floor": ("floor (plain PyTorch)", "ratio_floor_over_sb3"),
+                 "floor-equal-work": ("floor, equal work (plain PyTorch)", "ratio_floor_equal_work_over_sb3")}
+#: The floors' trainer names, as the target lines name them: {--trainers name: suffix of its lines}.
+FLOORS = {"floor": "floor", "floor-equal-work": "floor_equal_work"}
 
 #: The benchmark runs tested here: {name: ``python -m`` arguments}; the last two need stable-baselines3.
 BENCHMARK_RUNS = {
     "bench": ("benchmarks.bench", "--quick", "--batch-sizes", "8", "32", "--env-batch", "8", "--eval-episodes", "16"),
-    "peer": (*PEER_RUN, "agrl", "stable-baselines3", "floor", "--set", "agent.actor_hidden=[16,16]",
+    "peer": (*PEER_RUN, "agrl", "stable-baselines3", "floor", "floor-equal-work", "--set", "agent.actor_hidden=[16,16]",
              "agent.critic_hidden=[16,16]"),
     "race": ("benchmarks.bench_race", "--budget-seconds", "2", "--eval-every", "1", "--eval-episodes", "8",
              "--max-decisions", "4", "--no-compile", "--threads", "1", "--sb3-geometry", "agrl", "--agrl-override",
@@ -161,11 +164,12 @@ def test_iteration_record_reports_the_median_split():
 
 def test_peer_benchmark_prints_the_split_for_each_trainer_and_the_ratios(benchmark_runs):
     """``python -m benchmarks.bench_peer`` at a tiny geometry: one iteration line per trainer (agrl, SB3 and the
-    plain PyTorch floor), then each one's ratio to SB3, then agrl's two speed-target lines against the floor. With
+    plain PyTorch floor, bare and doing equal work), then each one's ratio to SB3, then agrl's two speed-target lines
+    against each floor. With
     the compiled loss too: the slow test below (its compilation takes longer than the rest of the run; the compiled
     loss itself is tests/rl/test_ppo.py's)."""
     pytest.importorskip("stable_baselines3")
-    assert_peer_records(benchmark_runs["peer"], ["agrl", "stable-baselines3", "floor"],
+    assert_peer_records(benchmark_runs["peer"], ["agrl", "stable-baselines3", "floor", "floor-equal-work"],
                         settings=["agent.actor_hidden=[16,16]", "agent.critic_hidden=[16,16]"])
 
 
@@ -196,12 +200,13 @@ def assert_peer_records(completed: subprocess.CompletedProcess, trainers: list[s
     compared = [name for name in trainers if PEER_TRAINERS[name][1] is not None]
     iterations, ratios = records[:len(trainers)], records[len(trainers):]
     agrl_trainers = [name for name in ("agrl", "agrl-compiled") if name in trainers]
-    targets = ratios[len(compared):]  # with the floor: each agrl trainer's two target lines
+    targets = ratios[len(compared):]  # with a floor: each agrl trainer's two target lines against it
     ratios = ratios[:len(compared)]
     assert [record["name"] for record in iterations] == ["ppo_iteration_seconds"] * len(trainers)
     assert [record["name"] for record in ratios] == [PEER_TRAINERS[name][1] for name in compared]
-    expected_targets = [f"{kind}_{name.replace('-', '_')}_over_floor" for name in agrl_trainers
-                        for kind in ("ratio", "collection_time")] if "floor" in trainers else []
+    floors = [floor for floor in FLOORS if floor in trainers]
+    expected_targets = [f"{kind}_{name.replace('-', '_')}_over_{FLOORS[floor]}" for floor in floors
+                        for name in agrl_trainers for kind in ("ratio", "collection_time")]
     assert [record["name"] for record in targets] == expected_targets
     assert [record["trainer"] for record in iterations] == [PEER_TRAINERS[name][0] for name in trainers]
     for record in iterations:
@@ -215,10 +220,11 @@ def assert_peer_records(completed: subprocess.CompletedProcess, trainers: list[s
         assert ratio["value"] == pytest.approx(paired(trainer, sb3, "total"), abs=1e-3) and ratio["threads"] == 1
         assert ratio["update_ratio"] == pytest.approx(paired(trainer, sb3, "update"), abs=1e-3)
         assert ratio["collection_ratio"] == pytest.approx(paired(trainer, sb3, "collection"), abs=1e-3)
-    if "floor" in trainers:
-        floor = by_name["floor"]
-        pairs = zip(targets[::2], targets[1::2], strict=True)
-        for name, (speed, collection_time) in zip(agrl_trainers, pairs, strict=True):
+    pairs = iter(zip(targets[::2], targets[1::2], strict=True))
+    for floor_name in floors:
+        floor = by_name[floor_name]
+        for name in agrl_trainers:
+            speed, collection_time = next(pairs)
             trainer = by_name[name]
             assert speed["value"] == pytest.approx(paired(trainer, floor, "total"), abs=1e-3)
             assert speed["collection_ratio"] == pytest.approx(paired(trainer, floor, "collection"), abs=1e-3)
@@ -350,3 +356,56 @@ def test_startup_benchmark_times_the_training_command_and_the_vector_env():
     speed = by_name[("gym_vector_env_decisions_per_second", "warm")]
     assert start["batch"] == speed["batch"] == 256 and speed["compiled"]  # compiled by default from 256 rows
     assert speed["value"] > 0
+
+
+def test_the_equal_work_floors_gae_is_torchrls():
+    """``floor-equal-work``'s GAE (every episode end a termination; the value after an end is the next episode's
+    first and unused) equals TorchRL's ``generalized_advantage_estimate``, which agrl's trainer runs."""
+    import torch
+    from torchrl.objectives.value.functional import generalized_advantage_estimate
+
+    from benchmarks.bench_peer import plain_gae
+
+    generator = torch.Generator().manual_seed(0)
+    steps, rows = 12, 5
+    rewards = torch.randn(steps, rows, generator=generator)
+    dones = torch.rand(steps, rows, generator=generator) < 0.3
+    values = torch.randn(steps + 1, rows, generator=generator)
+    advantages, targets = plain_gae(rewards, dones, values, gamma=0.97, lmbda=0.9)
+    # TorchRL's layout: [batch, time, 1], the next values of a done step anything (here the next episode's first).
+    as_torchrl = lambda tensor: tensor.T.unsqueeze(-1)  # noqa: E731
+    expected, expected_targets = generalized_advantage_estimate(
+        0.97, 0.9, as_torchrl(values[:-1]), as_torchrl(values[1:]), as_torchrl(rewards), as_torchrl(dones))
+    torch.testing.assert_close(as_torchrl(advantages), expected)
+    torch.testing.assert_close(as_torchrl(targets), expected_targets)
+    assert not torch.allclose(advantages, plain_gae(rewards, torch.zeros_like(dones), values, 0.97, 0.9)[0])
+
+
+@pytest.mark.parametrize("budget_reached", [False, True])
+def test_the_equal_work_floors_decision_end_is_the_envs(budget_reached):
+    """``floor-equal-work``'s reward and episode end of a decision are the env's (its budget's end included)."""
+    import torch
+
+    from agrl.config import guidance_parameters
+    from agrl.envs.guidance import GuidanceEnv
+    from benchmarks.bench_peer import plain_decision_end
+
+    params = guidance_parameters("reward=switch")
+    env = GuidanceEnv(params, num_envs=64, seed=3)
+    state = env.reset()
+    generator = torch.Generator().manual_seed(1)
+    for _ in range(3):  # a few decisions in, so that the last two actions differ between rows
+        state["action"] = torch.randint(0, env.num_actions, (64,), generator=generator)
+        state = env.step(state)["next"].exclude("reward", "done", "terminated")
+    if budget_reached:
+        state["step_count"] = torch.full((64,), params.max_decisions - 1)
+    state["action"] = torch.randint(0, env.num_actions, (64,), generator=generator)
+    result = env.simulator(state["aircraft_state"], state["destination_state"], state["destination_speed"],
+                           state["destination_turn_rate"], state["action"])
+    expected = env.complete_transition(state, result, state["destination_speed"], state["destination_turn_rate"])
+    reward, done = plain_decision_end(params, state["step_count"] + 1, state["aircraft_state"],
+                                      state["destination_state"], state["last_action"], state["action_before_last"],
+                                      state["action"], result)
+    torch.testing.assert_close(reward, expected["reward"].squeeze(-1), rtol=0, atol=0)
+    assert torch.equal(done, expected["done"].squeeze(-1))
+    assert bool(done.all()) == budget_reached
