@@ -11,4 +11,14 @@ Run each one from the repository root as a module, with agrl installed (``make b
 Each prints one JSON object per line (docs/benchmarks.md). This file makes ``benchmarks`` a regular package: torchrl
 installs a namespace package of the same name into site-packages, and a regular package on ``sys.path`` (the
 repository root, which ``python -m`` puts first) takes precedence over it.
+
+TorchRL writes its log lines to stdout (an INFO line when a trainer's replay buffer is allocated) unless
+``TORCHRL_CONSOLE_STREAM`` names another stream when it is first imported; this package sets it to stderr (a value
+the user set is kept) before any benchmark imports TorchRL, so that stdout holds the JSON lines alone and
+``make bench > bench.jsonl`` is a file of records.
 """
+
+import os
+
+os.environ.setdefault("TORCHRL_CONSOLE_STREAM", "stderr")
+

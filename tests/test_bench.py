@@ -195,7 +195,7 @@ def test_peer_benchmark_with_the_compiled_loss():
 def assert_peer_records(completed: subprocess.CompletedProcess, trainers: list[str],
                         settings: list[str] | None = None) -> None:
     assert completed.returncode == 0, completed.stderr
-    records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
+    records = [json.loads(line) for line in completed.stdout.splitlines()]  # JSON lines only (TorchRL's: stderr)
     assert all(record.get("settings") == settings for record in records)  # each line says what it measured
     compared = [name for name in trainers if PEER_TRAINERS[name][1] is not None]
     iterations, ratios = records[:len(trainers)], records[len(trainers):]

@@ -56,8 +56,9 @@ def test_quick_run_times_each_candidate_count(quick_runs):
 def test_after_training_iterations_the_batch_continues_episodes_of_the_one_before(quick_runs):
     completed = quick_runs["after_training"]
     assert completed.returncode == 0, completed.stderr
-    # The trainer's replay buffer logs a line when it first fills (torchrl's logger writes to stdout).
-    records = [json.loads(line) for line in completed.stdout.splitlines() if line.startswith("{")]
+    # JSON lines only: the trainer's replay buffer logs a line when it first fills, which goes to stderr.
+    records = [json.loads(line) for line in completed.stdout.splitlines()]
+    assert "Initialized LazyTensorStorage" in completed.stderr
     assert [record["name"] for record in records] == ["machine", "reuse_training_iteration", "reuse_relabel"]
     trained, record = records[1:]
     # The training iteration's relabelling is counted like the timed one (the collection's steps are not).
