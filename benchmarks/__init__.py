@@ -11,14 +11,21 @@ Run each one from the repository root as a module, with agrl installed (``make b
 Each prints one JSON object per line (docs/benchmarks.md). This file makes ``benchmarks`` a regular package: torchrl
 installs a namespace package of the same name into site-packages, and a regular package on ``sys.path`` (the
 repository root, which ``python -m`` puts first) takes precedence over it.
-
-TorchRL writes its log lines to stdout (an INFO line when a trainer's replay buffer is allocated) unless
-``TORCHRL_CONSOLE_STREAM`` names another stream when it is first imported; this package sets it to stderr (a value
-the user set is kept) before any benchmark imports TorchRL, so that stdout holds the JSON lines alone and
-``make bench > bench.jsonl`` is a file of records.
 """
 
-import os
+from __future__ import annotations
 
-os.environ.setdefault("TORCHRL_CONSOLE_STREAM", "stderr")
 
+def torchrl_logs_to_stderr() -> None:
+    """Send TorchRL's console log lines (an INFO line when a trainer's replay buffer is allocated) to stderr in this
+    process: TorchRL writes them to stdout, where a benchmark writes its JSON lines, so that ``make bench >
+    bench.jsonl`` is a file of records. Not through ``TORCHRL_CONSOLE_STREAM``, which would reach every process
+    this one starts too."""
+    import logging
+    import sys
+
+    import torchrl  # noqa: F401 - sets up its console handler
+
+    for handler in logging.getLogger("torchrl").handlers:
+        if isinstance(handler, logging.StreamHandler) and handler.stream is sys.stdout:
+            handler.setStream(sys.stderr)

@@ -59,6 +59,8 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks import torchrl_logs_to_stderr
+
 
 def _sb3():
     try:
@@ -469,6 +471,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                          "(--iterations: at least 2)")
     if "stable-baselines3" in args.trainers:
         _sb3()
+    torchrl_logs_to_stderr()
     import torch
 
     if args.threads is not None:

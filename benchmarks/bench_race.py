@@ -40,7 +40,6 @@ import argparse
 import contextlib
 import dataclasses
 import json
-import logging
 import os
 import sys
 import tempfile
@@ -50,6 +49,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from benchmarks import torchrl_logs_to_stderr
 
 TRAINERS = ("agrl", "stable-baselines3")
 EVALUATION_SEED_OFFSET = 1_000_003  # as agrl's Trainer: an evaluation set disjoint from the training stream
@@ -313,6 +314,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         from benchmarks.bench_peer import _sb3
 
         _sb3()
+    torchrl_logs_to_stderr()
     import torch
 
     from agrl.config import ConfigError, to_guidance_parameters
@@ -320,7 +322,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     if args.threads is not None:
         torch.set_num_threads(args.threads)
-    logging.getLogger("torchrl").setLevel(logging.WARNING)  # its INFO notes go to stdout, between the JSON lines
 
     def emit(record: dict) -> None:
         print(json.dumps(record), flush=True)

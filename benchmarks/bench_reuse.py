@@ -40,6 +40,7 @@ from collections.abc import Sequence
 import torch
 
 from agrl.cli import positive_int
+from benchmarks import torchrl_logs_to_stderr
 from benchmarks.bench import emit, machine_record
 
 #: Upper bounds of the call sizes the row-decisions are counted by (rows per simulator call).
@@ -115,6 +116,7 @@ def parse_args(argv: Sequence[str] | None = None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
+    torchrl_logs_to_stderr()
     if args.threads is not None:
         torch.set_num_threads(args.threads)
     from agrl.config import compose_config, load_config

@@ -20,6 +20,8 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from benchmarks import torchrl_logs_to_stderr
+
 PHASES = ("collection", "update")
 
 
@@ -87,6 +89,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name in ("warmup", "iterations", "top"):
         if getattr(args, name) < 1:
             parser.error(f"--{name}={getattr(args, name)} is not allowed: a positive integer")
+    torchrl_logs_to_stderr()  # stdout: the tables
     phases = profile_iteration(args.overrides, args.warmup, args.iterations)
     print(f"overrides: {' '.join(args.overrides) or '(the defaults)'}")
     for phase, result in phases.items():
