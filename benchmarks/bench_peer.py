@@ -292,9 +292,7 @@ def bench_floor(num_envs: int, steps: int, minibatch: int, compile: bool, seed: 
     simulator = DecisionSimulator(simulation, params.maneuvers.controls(), compile=compile)
     start_of_destination = torch.tensor(params.destination.start)
     destination = start_of_destination.expand(num_envs, 4).clone()
-    speed, turn_rate = params.destination.initial_motion(num_envs, generator, torch.device("cpu"))
-    speed, turn_rate = (torch.as_tensor(value, dtype=torch.float32).expand(num_envs).clone()
-                        for value in (speed, turn_rate))  # per row: restarts write theirs
+    speed, turn_rate = params.destination.initial_motion(num_envs, generator, torch.device("cpu"))  # per row
     aircraft = sample_initial_aircraft(num_envs, params.initial_state, destination, generator)
     last_action = torch.zeros(num_envs, dtype=torch.int64)
     action_before_last = torch.zeros(num_envs, dtype=torch.int64)
