@@ -235,13 +235,10 @@ def plain_decision_end(params, decisions, aircraft, destination, last_action, ac
     ``action_before_last``), the simulator's ``result`` of it, its row's ``decisions`` counted with it, as the env
     computes them (:meth:`agrl.envs.guidance.GuidanceEnv.complete_transition`), without its bookkeeping:
     ``(reward, done)``."""
-    import torch
-
     from agrl.core.reward import step_reward
-    from agrl.core.termination import Outcome
+    from agrl.core.termination import Outcome, decision_outcome
 
-    outcome = torch.where((result.outcome == Outcome.RUNNING) & (decisions >= params.max_decisions),
-                          int(Outcome.BUDGET_EXHAUSTED), result.outcome)
+    outcome = decision_outcome(result.outcome, decisions, params.max_decisions)
     reward, _ = step_reward(outcome, aircraft, destination, last_action, action_before_last, action,
                             result.aircraft_state, result.destination_state, params.reward, action != last_action)
     return reward, outcome != Outcome.RUNNING
@@ -496,9 +493,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 name = f"ratio_{trainer.replace('-', '_')}_over_sb3"
                 print(json.dumps(ratio_record(name, records[trainer], records["stable-baselines3"], args,
                                         torch.get_num_threads(), load)), flush=True)
-    for floor, suffix in (("floor", "floor"), ("floor-equal-work", "floor_equal_work")):
-        if floor not in records:  # "floor": the speed targets (docs/benchmarks.md); the equal-work floor beside them
+    for floor in ("floor", "floor-equal-work"):  # "floor": the speed targets (docs/benchmarks.md)
+        if floor not in records:
             continue
+        suffix = floor.replace("-", "_")
         for trainer in ("agrl", "agrl-compiled"):
             if trainer in records:
                 label = trainer.replace("-", "_")

@@ -31,8 +31,8 @@ PEER_TRAINERS = {"agrl": ("agrl", "ratio_agrl_over_sb3"),
                  "stable-baselines3": ("stable-baselines3", None),
                  "floor": ("floor (plain PyTorch)", "ratio_floor_over_sb3"),
                  "floor-equal-work": ("floor, equal work (plain PyTorch)", "ratio_floor_equal_work_over_sb3")}
-#: The floors' trainer names, as the target lines name them: {--trainers name: suffix of its lines}.
-FLOORS = {"floor": "floor", "floor-equal-work": "floor_equal_work"}
+#: The floors' --trainers names, in the order of their target lines.
+FLOORS = ("floor", "floor-equal-work")
 
 #: The benchmark runs tested here: {name: ``python -m`` arguments}; the last two need stable-baselines3.
 BENCHMARK_RUNS = {
@@ -165,9 +165,8 @@ def test_iteration_record_reports_the_median_split():
 def test_peer_benchmark_prints_the_split_for_each_trainer_and_the_ratios(benchmark_runs):
     """``python -m benchmarks.bench_peer`` at a tiny geometry: one iteration line per trainer (agrl, SB3 and the
     plain PyTorch floor, bare and doing equal work), then each one's ratio to SB3, then agrl's two speed-target lines
-    against each floor. With
-    the compiled loss too: the slow test below (its compilation takes longer than the rest of the run; the compiled
-    loss itself is tests/rl/test_ppo.py's)."""
+    against each floor. With the compiled loss too: the slow test below (its compilation takes longer than the rest
+    of the run; the compiled loss itself is tests/rl/test_ppo.py's)."""
     pytest.importorskip("stable_baselines3")
     assert_peer_records(benchmark_runs["peer"], ["agrl", "stable-baselines3", "floor", "floor-equal-work"],
                         settings=["agent.actor_hidden=[16,16]", "agent.critic_hidden=[16,16]"])
@@ -205,7 +204,7 @@ def assert_peer_records(completed: subprocess.CompletedProcess, trainers: list[s
     assert [record["name"] for record in iterations] == ["ppo_iteration_seconds"] * len(trainers)
     assert [record["name"] for record in ratios] == [PEER_TRAINERS[name][1] for name in compared]
     floors = [floor for floor in FLOORS if floor in trainers]
-    expected_targets = [f"{kind}_{name.replace('-', '_')}_over_{FLOORS[floor]}" for floor in floors
+    expected_targets = [f"{kind}_{name.replace('-', '_')}_over_{floor.replace('-', '_')}" for floor in floors
                         for name in agrl_trainers for kind in ("ratio", "collection_time")]
     assert [record["name"] for record in targets] == expected_targets
     assert [record["trainer"] for record in iterations] == [PEER_TRAINERS[name][0] for name in trainers]

@@ -82,3 +82,10 @@ def is_outside_airspace(
         | (z < airspace.z_min)
         | (z > airspace.z_max)
     )
+
+
+def decision_outcome(simulated: torch.Tensor, decisions: torch.Tensor, max_decisions: int) -> torch.Tensor:
+    """A decision's outcome: the simulator's (``simulated``: success, out of the airspace or running), or the
+    budget's end for a row still running after its ``decisions``-th decision of ``max_decisions``."""
+    return torch.where((simulated == Outcome.RUNNING) & (decisions >= max_decisions),
+                       int(Outcome.BUDGET_EXHAUSTED), simulated)

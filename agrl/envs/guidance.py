@@ -25,7 +25,7 @@ from agrl.core.observation import observation_function, observation_size, target
 from agrl.core.parameters import GuidanceParameters, MotionKind
 from agrl.core.reward import REWARD_PART_KEYS, step_reward
 from agrl.core.simulation import DecisionResult, DecisionSimulator
-from agrl.core.termination import Outcome
+from agrl.core.termination import Outcome, decision_outcome
 
 #: The paper's maneuvers (``actions=maneuvers``); an env's own count: ``GuidanceEnv.num_actions``.
 NUM_ACTIONS = len(MANEUVER_NAMES)
@@ -350,11 +350,7 @@ class GuidanceEnv(EnvBase):
         """
         action = state["action"].long()
         step_count = state["step_count"] + 1
-        outcome = torch.where(
-            (result.outcome == Outcome.RUNNING) & (step_count >= self.params.max_decisions),
-            int(Outcome.BUDGET_EXHAUSTED),
-            result.outcome,
-        )
+        outcome = decision_outcome(result.outcome, step_count, self.params.max_decisions)
         terminal = outcome != Outcome.RUNNING
         next_state = TensorDict(
             {

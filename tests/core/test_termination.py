@@ -11,7 +11,7 @@ import torch
 from agrl.core.aircraft import MANEUVER_NAMES
 from agrl.core.reward import RewardParameters
 from agrl.core.simulation import DecisionSimulator
-from agrl.core.termination import Outcome, SuccessTolerance, is_outside_airspace, is_success
+from agrl.core.termination import Outcome, SuccessTolerance, decision_outcome, is_outside_airspace, is_success
 from agrl.envs import GuidanceEnv
 
 TOLERANCE = SuccessTolerance(distance=1_000.0, altitude=200.0, heading_deg=30.0)
@@ -204,3 +204,11 @@ def test_env_success_pays_c1(paper_parameters):
     assert nxt["outcome"].tolist() == [Outcome.SUCCESS]
     expected = params.reward.success - hand_potential(start, (0, 0, 0, 0), False, params.reward)
     assert float(nxt["reward"]) == pytest.approx(expected, abs=1e-5)
+
+
+def test_a_decision_ends_the_episode_at_its_budget_only_if_the_simulator_left_it_running():
+    simulated = torch.tensor([Outcome.RUNNING, Outcome.RUNNING, Outcome.SUCCESS, Outcome.OUT_OF_AIRSPACE])
+    at_budget = torch.full((4,), 30)
+    assert decision_outcome(simulated, at_budget, max_decisions=30).tolist() == [
+        Outcome.BUDGET_EXHAUSTED, Outcome.BUDGET_EXHAUSTED, Outcome.SUCCESS, Outcome.OUT_OF_AIRSPACE]
+    assert decision_outcome(simulated, at_budget - 1, max_decisions=30).tolist() == simulated.tolist()
