@@ -22,7 +22,14 @@ install: $(STAMP)
 TRAIN_DIR ?= runs/fixed/baseline/$(NOW)
 NOW := $(shell date +%Y-%m-%d_%H-%M-%S)
 train: install
-	$(PY) -m agrl.train +experiment=switch_schedule hydra.run.dir=$(TRAIN_DIR) $(ARGS)
+	$(SHIPPED_CPU_PATH) $(PY) -m agrl.train +experiment=switch_schedule hydra.run.dir=$(TRAIN_DIR) $(ARGS)
+
+# The processor path the shipped baseline was trained on: torch's AVX2 kernels (ATEN_CPU_CAPABILITY, which the code
+# torch.compile generates follows) and MKL's (MKL_ENABLE_INSTRUCTIONS). A processor with AVX-512 runs them too, and
+# make train then gives the shipped agent bit for bit there as well (docs/results/baseline.md, "Reproducibility and
+# caveats"). Empty where the processor has no AVX2 (torch chooses); `make train CPU_PATH=` leaves it to torch anyway.
+CPU_PATH ?= $(shell grep -qw avx2 /proc/cpuinfo 2>/dev/null && echo avx2)
+SHIPPED_CPU_PATH := $(if $(CPU_PATH),ATEN_CPU_CAPABILITY=$(CPU_PATH) MKL_ENABLE_INSTRUCTIONS=$(shell echo $(CPU_PATH) | tr a-z A-Z))
 
 # The shipped baseline until 2026-12-06, baseline-two-stage (Tables 4-5's B; docs/results/baseline.md): two stages.
 # Stage 1 trains the fixed-destination agent from scratch at a switch cost of 0.1 until a periodic evaluation reaches

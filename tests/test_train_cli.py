@@ -426,11 +426,12 @@ def single_error_line(result, code: int) -> str:
     return lines[0]
 
 
-def test_divergence_exits_3_with_the_iteration_and_the_checkpoint_folder(bad_runs):
+def test_divergence_exits_3_with_the_iteration_and_what_is_kept(bad_runs):
     line = single_error_line(bad_runs["diverges"], 3)
-    checkpoints = bad_runs["directory"] / "diverges" / "checkpoints"
-    assert line == (f"agrl.train: error: non-finite loss (nan) at iteration 1, update 1; "
-                    f"last good checkpoint kept in {checkpoints}")
+    # It diverged in its first iteration: no checkpoint to point at (a later one names the folder it kept).
+    assert line == ("agrl.train: error: non-finite loss (nan) at iteration 1, update 1; "
+                    "no checkpoint yet: the run stopped before its first (every checkpoint_interval=1 iterations)")
+    assert not (bad_runs["directory"] / "diverges" / "checkpoints" / "latest.pt").exists()
 
 
 def test_reuse_without_a_baseline_is_one_line(bad_runs):

@@ -11,7 +11,7 @@ from tensordict import TensorDictBase
 from torchrl.objectives import ClipPPOLoss
 from torchrl.objectives.value import GAE
 
-from agrl.core.compiled import EagerFallback
+from agrl.core.compiled import EagerFallback, keep_kernels_per_instruction_set
 
 #: Loss outputs averaged over an iteration's updates and logged as ``loss/<name>``.
 LOGGED_LOSS_TERMS = ("loss_objective", "loss_critic", "loss_entropy", "entropy", "kl_approx", "clip_fraction",
@@ -40,14 +40,16 @@ class CompiledLoss(torch.nn.Module):
 
     The same function as ``loss`` (to float rounding; ``tests/rl/test_ppo.py``). A minibatch of 512 rows is a
     few dozen small kernels and TensorDict bookkeeping in eager mode; compiled, the update is shorter in
-    ``python -m benchmarks.bench_peer``, for a compilation on the first minibatch (kept by inductor's cache between
-    runs). ``make train``'s recipe uses it; the defaults do not (their results were measured eagerly).
+    ``python -m benchmarks.bench_peer``, for a compilation on the first minibatch (kept between runs by torch's
+    compile cache, one folder per instruction set: :func:`agrl.core.compiled.keep_kernels_per_instruction_set`).
+    ``make train``'s recipe uses it; the defaults do not (their results were measured eagerly).
     If compilation fails (no C++ compiler, an unsupported platform) it warns once and stays eager.
     """
 
     def __init__(self, loss: ClipPPOLoss):
         super().__init__()
         self.loss = loss
+        keep_kernels_per_instruction_set()  # torch's cache would mix kernels of two instruction sets
         self._forward = EagerFallback(torch.compile(loss), loss, "the PPO loss")
 
     def forward(self, batch: TensorDictBase) -> TensorDictBase:

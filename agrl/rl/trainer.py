@@ -256,8 +256,15 @@ class Trainer:
                                 ppo.max_grad_norm, where=f"at iteration {self.counters.iteration + 1}",
                                 max_updates=max_updates, target_kl=ppo.target_kl)
         except TrainingDiverged as error:
-            raise TrainingDiverged(f"{error}; last good checkpoint kept in {self.checkpoint_dir}") from None
+            raise TrainingDiverged(f"{error}; {self._kept_checkpoint()}") from None
         return data, losses, fill_time
+
+    def _kept_checkpoint(self) -> str:
+        """What a stopped run leaves to resume from, for its error line."""
+        if (self.checkpoint_dir / "latest.pt").is_file():
+            return f"last good checkpoint kept in {self.checkpoint_dir}"
+        return (f"no checkpoint yet: the run stopped before its first (every checkpoint_interval="
+                f"{self.cfg.checkpoint_interval} iterations)")
 
     def _evaluation_due(self, metrics: dict[str, float]) -> bool:
         """Whether a periodic evaluation follows this iteration (``metrics``: its training statistics)."""

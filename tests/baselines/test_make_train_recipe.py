@@ -156,7 +156,7 @@ def _dry_run_train_commands(target: str, *variables: str) -> list[list[str]]:
     """The overrides of each ``python -m agrl.train`` command ``make -n <target>`` would run, in order."""
     commands = _dry_run(target, *variables).replace("\\\n", " ").splitlines()
     return [shlex.split(line.split(" -m agrl.train ", 1)[1]) for line in commands
-            if re.match(r"\S*python\S* -m agrl\.train ", line)]
+            if re.match(r"(?:\w+=\S* )*\S*python\S* -m agrl\.train ", line)]
 
 
 def test_make_train_fast_fine_tunes_its_own_stage_one(compose_train):
@@ -177,6 +177,26 @@ def test_make_train_fast_fine_tunes_its_own_stage_one(compose_train):
 def test_make_train_passes_its_arguments_to_its_one_run():
     (command,) = _dry_run_train_commands("train", "TRAIN_DIR=/tmp/agrl-train", "ARGS=seed=2")
     assert command == ["+experiment=switch_schedule", "hydra.run.dir=/tmp/agrl-train", "seed=2"]
+
+
+def _has_avx2() -> bool:
+    cpuinfo = Path("/proc/cpuinfo")
+    return cpuinfo.is_file() and "avx2" in cpuinfo.read_text().split()
+
+
+def _make_train_environment(*variables: str) -> list[str]:
+    """The variables ``make train`` sets on its ``python -m agrl.train`` command."""
+    (line,) = [line for line in _dry_run("train", "TRAIN_DIR=/tmp/agrl-train", *variables).splitlines()
+               if " -m agrl.train " in line]
+    return re.match(r"((?:\w+=\S* )*)", line).group(1).split()
+
+
+def test_make_train_runs_on_the_processor_path_the_shipped_agent_was_trained_on():
+    """On AVX-512 processors too, so that it trains the shipped file bit for bit there (docs/results/baseline.md)."""
+    recorded = torch.load(BASELINE_FILE, weights_only=True)["evaluation"]["machine"]["cpu_capability"]
+    expected = [f"ATEN_CPU_CAPABILITY={recorded.lower()}", f"MKL_ENABLE_INSTRUCTIONS={recorded.upper()}"]
+    assert _make_train_environment() == (expected if _has_avx2() else [])
+    assert _make_train_environment("CPU_PATH=") == []  # left to torch
 
 
 def test_tables_4_and_5_are_reproduced_with_the_b_they_were_measured_with():
