@@ -15,7 +15,7 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
-# The main job on its defaults: the shipped baseline (docs/results/baseline.md), about 1.5-2 minutes on 2 cores. One run
+# The main job on its defaults: the shipped baseline (docs/results/baseline.md), about 1.5 minutes on 2 cores. One run
 # (+experiment=switch_schedule): PPO from scratch at a switch cost of 0.104 until a periodic evaluation, confirmed on
 # 1000 other episodes, reaches 99.8 %, then 60 iterations at 0.449 in the same run. ARGS: extra Hydra overrides
 # (e.g. ARGS='seed=1'). Other tasks and methods: python -m agrl.train task=uniform speed=50 method=reuse (README).
@@ -57,8 +57,9 @@ train-fast: train-args install
 # The shipped target-holding agent, baseline-targets (docs/results/action_sets.md): make train-two-stage's two stages with
 # actions=targets (heading, altitude and speed clearances flown by an autopilot; conf/actions/targets.yaml). Stage 1
 # trains from scratch at a switch cost of 0.1 until a periodic evaluation reaches 99.5 %, stage 2 fine-tunes it at 0.3
-# for 80 iterations; about 2.5 min on 2 cores, the shipped file bit for bit. ARGS: extra overrides for both stages
-# (e.g. ARGS='seed=2').
+# for 80 iterations; 2.5-4 min on 2 cores, the shipped file bit for bit on the AMD EPYC processors with AVX-512 it was
+# checked on (it was trained on torch's AVX-512 path, so it leaves the path to torch; make train pins AVX2). ARGS:
+# extra overrides for both stages (e.g. ARGS='seed=2').
 TARGETS_TRAIN_DIR ?= runs/fixed/targets/$(NOW)
 train-targets: train-args install
 	$(PY) -m agrl.train actions=targets hydra.run.dir=$(TARGETS_TRAIN_DIR)/stage1 $(ARGS)

@@ -4,6 +4,7 @@ processor), so an agent's record names them."""
 
 from __future__ import annotations
 
+import os
 import platform
 
 import torch
@@ -18,12 +19,14 @@ def cpu_model(cpuinfo: dict[str, str] | None = None) -> str:
 
 def processor_record() -> dict[str, str | int]:
     """What decides a CPU run's rounding: the processor (model name; family and model number on x86, which tell
-    apart processors sold under one name), the instruction set torch's kernels use here, torch and its threads."""
+    apart processors sold under one name), the instruction set torch's kernels use here, the one MKL's are limited
+    to (``MKL_ENABLE_INSTRUCTIONS``; empty: MKL's own choice), torch and its threads."""
     info = _cpuinfo()
     return {
         "cpu": cpu_model(info),
         "cpu_family_model": f"{info['cpu family']}/{info['model']}" if "cpu family" in info else "",
         "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+        "mkl_instructions": os.environ.get("MKL_ENABLE_INSTRUCTIONS", ""),
         "torch": torch.__version__,
         "threads": torch.get_num_threads(),
     }

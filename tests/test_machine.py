@@ -10,9 +10,13 @@ import torch
 from agrl.machine import processor_record
 
 
-def test_the_record_names_the_kernels_path_torch_and_threads():
+def test_the_record_names_the_kernels_path_torch_and_threads(monkeypatch):
+    monkeypatch.setenv("MKL_ENABLE_INSTRUCTIONS", "AVX2")  # what make train sets
     record = processor_record()
     assert record["cpu_capability"] == torch.backends.cpu.get_cpu_capability()
+    assert record["mkl_instructions"] == "AVX2"
+    monkeypatch.delenv("MKL_ENABLE_INSTRUCTIONS")
+    assert processor_record()["mkl_instructions"] == ""  # MKL's own choice
     assert (record["torch"], record["threads"]) == (torch.__version__, torch.get_num_threads())
     assert record["cpu"]
 
