@@ -135,6 +135,14 @@ def load_latest_checkpoint(path: str | Path, required: tuple[str, ...] = ("actor
         return previous, payload, f"{error}; going on from the checkpoint before it, {previous}"
 
 
+def kept_checkpoint(checkpoint_dir: Path, interval: int) -> str:
+    """What a run that stopped on an error leaves to resume from, for its error line: the folder of its last good
+    ``latest`` checkpoint, or that it stopped before its first (written every ``interval`` iterations)."""
+    if (checkpoint_dir / "latest.pt").is_file():
+        return f"last good checkpoint kept in {checkpoint_dir}"
+    return f"no checkpoint yet: the run stopped before its first (every checkpoint_interval={interval} iterations)"
+
+
 def set_aside_damaged(path: str | Path) -> Path:
     """Put the readable :func:`previous_checkpoint_path` back at ``path`` and keep the damaged file beside it as
     ``<name>.damaged`` (for a look, never read): the run's checkpoints are whole again, and its next save keeps a

@@ -33,7 +33,7 @@ from agrl.config import TrainConfig, method_class, task_label, to_guidance_param
 from agrl.envs.guidance import GuidanceEnv
 from agrl.machine import processor_record
 from agrl.plots import DRAWN_EPISODES, plot_trajectories, trajectory_image
-from agrl.rl.checkpoint import CheckpointError, load_module_state, save_checkpoint
+from agrl.rl.checkpoint import CheckpointError, kept_checkpoint, load_module_state, save_checkpoint
 from agrl.rl.curriculum import SharedScaleGuidanceEnv, promoted_scale, shared_scale, start_distribution
 from agrl.rl.evaluation import instruction_latency_ms, run_episodes, search_objective, summarise, write_evaluation
 from agrl.rl.metrics import MetricsLog, episode_statistics, progress_line
@@ -256,15 +256,9 @@ class Trainer:
                                 ppo.max_grad_norm, where=f"at iteration {self.counters.iteration + 1}",
                                 max_updates=max_updates, target_kl=ppo.target_kl)
         except TrainingDiverged as error:
-            raise TrainingDiverged(f"{error}; {self._kept_checkpoint()}") from None
+            kept = kept_checkpoint(self.checkpoint_dir, self.cfg.checkpoint_interval)
+            raise TrainingDiverged(f"{error}; {kept}") from None
         return data, losses, fill_time
-
-    def _kept_checkpoint(self) -> str:
-        """What a stopped run leaves to resume from, for its error line."""
-        if (self.checkpoint_dir / "latest.pt").is_file():
-            return f"last good checkpoint kept in {self.checkpoint_dir}"
-        return (f"no checkpoint yet: the run stopped before its first (every checkpoint_interval="
-                f"{self.cfg.checkpoint_interval} iterations)")
 
     def _evaluation_due(self, metrics: dict[str, float]) -> bool:
         """Whether a periodic evaluation follows this iteration (``metrics``: its training statistics)."""
