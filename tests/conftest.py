@@ -33,18 +33,11 @@ import pytest
 import torch
 from hypothesis import HealthCheck, settings
 
-from agrl.core.compiled import keep_kernels_per_instruction_set
-
 # Property-based tests (tests/*_inputs.py): the same examples on every run and machine, no example database
 # written into the working directory, no per-example deadline (a first call imports and composes).
 settings.register_profile("agrl", derandomize=True, database=None, deadline=None, print_blob=False,
                           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 settings.load_profile("agrl")
-
-# torch's compile cache for the whole session (its workers and the commands they run) is the folder a user's run
-# would use, chosen once here: a test that points AGRL_COMPILE_CACHE at a temporary folder and compiles first
-# would otherwise put it there, cold, for the rest of its worker.
-keep_kernels_per_instruction_set()
 
 CONF_DIR = (Path(__file__).resolve().parent.parent / "conf").resolve()
 

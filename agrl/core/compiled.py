@@ -60,27 +60,24 @@ def compile_cache_dir() -> Path | None:
 INDUCTOR_CACHE_VARIABLE = "TORCHINDUCTOR_CACHE_DIR"
 
 
-def keep_kernels_per_instruction_set() -> Path | None:
-    """Point torch's own compile cache (``$TORCHINDUCTOR_CACHE_DIR``) at ``<compile_cache_dir()>/inductor/<the
-    instruction set torch's CPU kernels use>``, unless the user chose another folder (torch's import sets the variable
-    to its default, which counts as unchosen); return the folder in use (``None``: torch's default, where agrl's cache
-    is ``off``).
+def keep_kernels_per_instruction_set() -> Path:
+    """Point torch's own compile cache (``$TORCHINDUCTOR_CACHE_DIR``) at ``agrl-<the instruction set torch's CPU
+    kernels use>`` in torch's default folder (``/tmp/torchinductor_$USER/agrl-avx2``), unless the user chose another
+    folder (torch's import sets the variable to its default, which counts as unchosen); return the folder in use.
 
     torch's cache of compiled graphs does not tell apart the vector instructions it generated their C++ for (torch
     2.13): a graph generated on the AVX-512 path and found again by a process on the AVX2 path
     (``ATEN_CPU_CAPABILITY=avx2``, which ``make train`` sets), or the other way round, is built with the other
     path's compiler flags and computes wrong numbers, silently (a PPO loss's gradients turned NaN; a sum came out a
-    third short). One folder per instruction set keeps them apart; in the user's cache folder, it also outlives a
-    reboot, as agrl's own compilations do. Called before agrl compiles anything."""
+    third short). One folder per instruction set keeps them apart. It stays on this machine, in torch's temporary
+    folder, rather than in a home folder other machines may share: torch builds the kernels for this very processor
+    (``-march=native``). Called before agrl compiles anything."""
     from torch._inductor.runtime.cache_dir_utils import default_cache_dir
 
     chosen = os.environ.get(INDUCTOR_CACHE_VARIABLE)
     if chosen and os.path.abspath(chosen) != os.path.abspath(default_cache_dir()):
         return Path(chosen)
-    folder = compile_cache_dir()
-    if folder is None:
-        return None
-    folder = folder / "inductor" / torch.backends.cpu.get_cpu_capability().lower()
+    folder = Path(default_cache_dir()) / f"agrl-{torch.backends.cpu.get_cpu_capability().lower()}"
     os.environ[INDUCTOR_CACHE_VARIABLE] = str(folder)
     return folder
 

@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 import warnings
+from pathlib import Path
 
 import pytest
 import torch
@@ -211,57 +212,59 @@ def test_inference_mode_uses_the_no_grad_compilation(cache):
 
 
 # ---------------------------------------------------------------- torch's own cache, one folder per instruction set
+def _capability() -> str:
+    return torch.backends.cpu.get_cpu_capability().lower()
+
+
 @pytest.fixture
-def torch_cache_unset(monkeypatch):
-    """``$TORCHINDUCTOR_CACHE_DIR`` unset for the test (an empty value counts as unset), restored after it."""
+def torch_default(monkeypatch, tmp_path):
+    """torch's default folder (under ``$TMPDIR``) in a temporary folder, ``$TORCHINDUCTOR_CACHE_DIR`` unset (an empty
+    value counts as unset); both restored after the test."""
+    import tempfile
+
+    from torch._inductor.runtime.cache_dir_utils import default_cache_dir
+
     monkeypatch.setenv(INDUCTOR_CACHE_VARIABLE, "")
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    return Path(default_cache_dir())
 
 
-def test_torchs_cache_goes_to_a_folder_of_this_instruction_set(torch_cache_unset, cache):
+def test_torchs_cache_goes_to_a_folder_of_this_instruction_set(torch_default, tmp_path):
     folder = keep_kernels_per_instruction_set()
-    assert folder == cache / "inductor" / torch.backends.cpu.get_cpu_capability().lower()
+    assert folder == torch_default / f"agrl-{_capability()}" and folder.is_relative_to(tmp_path)
     assert os.environ[INDUCTOR_CACHE_VARIABLE] == str(folder)
     assert keep_kernels_per_instruction_set() == folder  # chosen once: a second call keeps it
 
 
-def test_torchs_default_folder_counts_as_unchosen(monkeypatch, cache):
+def test_torchs_default_folder_counts_as_unchosen(torch_default, monkeypatch):
     """Importing torch._dynamo (tensordict does) sets the variable to torch's default before agrl compiles."""
-    from torch._inductor.runtime.cache_dir_utils import default_cache_dir
-
-    monkeypatch.setenv(INDUCTOR_CACHE_VARIABLE, default_cache_dir())
-    assert keep_kernels_per_instruction_set() == cache / "inductor" / torch.backends.cpu.get_cpu_capability().lower()
+    monkeypatch.setenv(INDUCTOR_CACHE_VARIABLE, str(torch_default))
+    assert keep_kernels_per_instruction_set() == torch_default / f"agrl-{_capability()}"
 
 
-def test_a_folder_the_user_chose_for_torchs_cache_is_kept(monkeypatch, tmp_path, cache):
+def test_a_folder_the_user_chose_for_torchs_cache_is_kept(torch_default, monkeypatch, tmp_path):
     monkeypatch.setenv(INDUCTOR_CACHE_VARIABLE, str(tmp_path / "mine"))
     assert keep_kernels_per_instruction_set() == tmp_path / "mine"
     assert os.environ[INDUCTOR_CACHE_VARIABLE] == str(tmp_path / "mine")
 
 
-def test_off_leaves_torchs_cache_where_torch_puts_it(torch_cache_unset, monkeypatch):
-    monkeypatch.setenv(CACHE_VARIABLE, "off")
-    assert keep_kernels_per_instruction_set() is None
-    assert os.environ[INDUCTOR_CACHE_VARIABLE] == ""
-
-
-def _run_python(code: str, cache, **environment: str) -> str:
-    """``code`` in a new interpreter, its compile caches unset but AGRL_COMPILE_CACHE=``cache``; its stdout."""
+def _run_python(code: str, **environment: str) -> str:
+    """``code`` in a new interpreter as a user's run starts one (torch's cache variable and path unset, so its kernels
+    are the user's), with ``environment`` added; its stdout."""
     env = {key: value for key, value in os.environ.items()
            if key not in (INDUCTOR_CACHE_VARIABLE, "ATEN_CPU_CAPABILITY")}
-    env.update({CACHE_VARIABLE: str(cache), **environment})
+    env.update(environment)
     done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     return done.stdout.strip()
 
 
-def test_each_instruction_set_torch_runs_on_has_its_own_folder(cache):
-    if torch.backends.cpu.get_cpu_capability() == "DEFAULT":
+def test_each_instruction_set_torch_runs_on_has_its_own_folder():
+    if _capability() == "default":
         pytest.skip("torch's kernels use no vector instructions here: no second path to choose")
-    code = "from agrl.core.compiled import keep_kernels_per_instruction_set as keep; print(keep())"
-    native = _run_python(code, cache)
-    plain = _run_python(code, cache, ATEN_CPU_CAPABILITY="default")
-    assert native == str(cache / "inductor" / torch.backends.cpu.get_cpu_capability().lower())
-    assert plain == str(cache / "inductor" / "default")
+    code = "from agrl.core.compiled import keep_kernels_per_instruction_set as keep; print(keep().name)"
+    assert _run_python(code) == f"agrl-{_capability()}"
+    assert _run_python(code, ATEN_CPU_CAPABILITY="default") == "agrl-default"
 
 
 #: A compiled function whose C++ torch vectorises: it prints its largest difference from the eager result. Importing
@@ -278,9 +281,9 @@ print(float((torch.compile(function)(rows) - function(rows)).abs().max()))
 
 @pytest.mark.skipif(torch.backends.cpu.get_cpu_capability() != "AVX512",
                     reason="needs a processor with AVX-512, whose AVX2 path torch's cache would confuse with it")
-def test_a_compilation_on_the_avx2_path_is_not_mixed_up_with_one_on_avx512(cache):
+def test_a_compilation_on_the_avx2_path_is_not_mixed_up_with_one_on_avx512():
     """torch 2.13's cache found a graph generated for AVX-512 again on the AVX2 path (make train's), built it with
-    AVX2's flags, and this function came out a third short; so did a PPO loss's gradients, as NaN."""
-    assert float(_run_python(_VECTORISED, cache)) < 1e-3
-    assert float(_run_python(_VECTORISED, cache, ATEN_CPU_CAPABILITY="avx2")) < 1e-3
-    assert {folder.name for folder in (cache / "inductor").iterdir()} == {"avx512", "avx2"}
+    AVX2's flags, and this function came out a third short; so did a PPO loss's gradients, as NaN. The first
+    process leaves the AVX-512 graph in the user's cache (compiled, or found there), which the second would find."""
+    assert float(_run_python(_VECTORISED)) < 1e-3
+    assert float(_run_python(_VECTORISED, ATEN_CPU_CAPABILITY="avx2")) < 1e-3
