@@ -35,7 +35,8 @@ SHIPPED_CPU_PATH := $(if $(CPU_PATH),ATEN_CPU_CAPABILITY=$(CPU_PATH) MKL_ENABLE_
 # Stage 1 trains the fixed-destination agent from scratch at a switch cost of 0.1 until a periodic evaluation reaches
 # 99.5 % (`python -m agrl.train`'s defaults); stage 2 fine-tunes it at 0.3 for 80 iterations (+experiment=switch_finetune).
 # ARGS: extra Hydra overrides for stage 1. FINETUNE_ARGS: for stage 2; its default is that agent's own stage 2,
-# seed 1 on one torch thread (a run is bit for bit the same only at the same thread count).
+# seed 1 on one torch thread (a run is bit for bit the same only at the same thread count). Its agent was trained on
+# torch's AVX-512 path, which this target leaves torch to choose (checked on an AMD EPYC with AVX-512).
 TWO_STAGE_DIR ?= runs/fixed/two_stage/$(NOW)
 FINETUNE_ARGS ?= seed=1 threads=1
 train-two-stage: train-args install
