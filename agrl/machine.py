@@ -27,9 +27,25 @@ def processor_record() -> dict[str, str | int]:
         "cpu_family_model": f"{info['cpu family']}/{info['model']}" if "cpu family" in info else "",
         "cpu_capability": torch.backends.cpu.get_cpu_capability(),
         "mkl_instructions": os.environ.get("MKL_ENABLE_INSTRUCTIONS", ""),
-        "torch": torch.__version__,
+        "torch": str(torch.__version__),  # a plain string: checkpoints keep the record (weights_only)
         "threads": torch.get_num_threads(),
     }
+
+
+#: What makes a run round differently on one processor or another: the instruction sets torch's and MKL's kernels use.
+PATH_FIELDS = ("cpu_capability", "mkl_instructions")
+
+
+def other_path(saved: dict | None, here: dict | None = None) -> str | None:
+    """How the processor path of ``saved`` (a :func:`processor_record`, e.g. a checkpoint's ``machine``) differs
+    from ``here`` (default: this process's), in words, or ``None`` if it does not (or ``saved`` is ``None``: a
+    checkpoint written before they recorded it). A resume is exact only on its checkpoint's path."""
+    if not saved:
+        return None
+    here = processor_record() if here is None else here
+    differing = [f"{field} {saved.get(field, '')!r} there, {here[field]!r} here" for field in PATH_FIELDS
+                 if saved.get(field, "") != here[field]]
+    return "; ".join(differing) or None
 
 
 def _cpuinfo() -> dict[str, str]:

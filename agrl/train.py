@@ -22,6 +22,7 @@ from omegaconf import DictConfig, OmegaConf, open_dict
 
 from agrl.cli import RESUMABLE_OVERRIDES, refuse_unresumable, run_checked
 from agrl.config import ConfigError, load_config, override_key
+from agrl.machine import other_path
 from agrl.rl.checkpoint import (
     CheckpointError,
     checkpoint_run_directory,
@@ -45,6 +46,9 @@ def _resume_config(cfg: DictConfig, reference: str, requeued: bool = False) -> t
         log.warning("%s (the damaged file is kept as %s)", note, set_aside_damaged(latest))
         path = latest
     payload["_path"] = str(path)
+    if differing := other_path(payload.get("machine")):
+        log.warning("resuming on another processor path than the checkpoint's (%s): the run goes on, but not bit for "
+                    "bit as it would have (make train's path: README)", differing)
     # The composed config carries the typed group schemas; the run's saved values go on top. The method section
     # is the saved one whole (another method than the command line's default has other keys); checkpoints
     # written when all methods shared one schema hold None for the keys their method does not have.

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from agrl.machine import processor_record
+from agrl.machine import other_path, processor_record
 
 
 def test_the_record_names_the_kernels_path_torch_and_threads(monkeypatch):
@@ -30,3 +30,12 @@ def test_the_record_reads_the_first_processor_of_proc_cpuinfo():
         assert record["cpu"] == fields["model name"]
     if "cpu family" in fields:
         assert record["cpu_family_model"] == f"{fields['cpu family']}/{fields['model']}"
+
+
+def test_another_processor_path_is_named_field_by_field():
+    here = {**processor_record(), "cpu_capability": "AVX512", "mkl_instructions": ""}
+    assert other_path({**here, "cpu": "another model", "threads": 64}, here) is None  # the same path
+    assert other_path(None, here) is None  # a checkpoint from before they recorded it
+    assert other_path({"cpu_capability": "AVX2", "mkl_instructions": "AVX2"}, here) == (
+        "cpu_capability 'AVX2' there, 'AVX512' here; mkl_instructions 'AVX2' there, '' here")
+    assert other_path({"cpu_capability": "AVX512"}, here) is None  # MKL's own choice, unrecorded: the same

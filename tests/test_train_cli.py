@@ -479,7 +479,27 @@ def test_a_resume_continues_in_its_run_directory_and_log(tiny_run, run_cli, tmp_
     appended = resumed_log[len(log):]
     assert f"resumed from {run / 'checkpoints' / 'latest.pt'} after iteration 4 (2048 decisions)" in appended
     assert f"training stopped: reached ppo.total_frames={frames}" in appended
+    assert "another processor path" not in appended  # the checkpoint's own
     assert {path.name: path.read_bytes() for path in (run / ".hydra").iterdir()} == record
+
+
+def test_a_resume_on_another_processor_path_says_so(tiny_run, run_cli, tmp_path):
+    """Checkpoints record the processor path (agrl.machine.processor_record); a resume on another goes on, with one
+    warning that it is no longer bit for bit."""
+    import shutil
+
+    native = torch.backends.cpu.get_cpu_capability()
+    if native == "DEFAULT":
+        pytest.skip("torch's kernels use no vector instructions here: no other path to resume on")
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run.run_dir, run)
+    assert load_checkpoint(run / "checkpoints" / "latest.pt")["machine"]["cpu_capability"] == native
+    result = subprocess.run(run_cli.command("train", f"resume={run}", f"ppo.total_frames={5 * 512}"),
+                            env={**run_cli.environment(), "ATEN_CPU_CAPABILITY": "default"},
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr[-3000:]
+    (warning,) = [line for line in (run / "train.log").read_text().splitlines() if "another processor path" in line]
+    assert f"cpu_capability '{native}' there, 'DEFAULT' here" in warning
 
 
 def test_a_trial_of_several_seeds_trains_each_as_its_own_run_and_returns_the_worst(run_cli, tiny_args, tmp_path):

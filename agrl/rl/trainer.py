@@ -166,11 +166,11 @@ class Trainer:
     # ------------------------------------------------------------------ checkpoints
     @functools.cached_property
     def _config_record(self) -> dict[str, Any]:
-        """The resolved config as checkpoints keep it; built once (it does not change during a run, and building it
-        costs about as much as the rest of a snapshot, which every iteration takes)."""
+        """The resolved config and the processor path, as checkpoints keep them; built once (neither changes during a
+        run, and building them costs about as much as the rest of a snapshot, which every iteration takes)."""
         config = OmegaConf.structured(self.cfg)
         return {"config": OmegaConf.to_container(config, resolve=True),
-                "config_yaml": OmegaConf.to_yaml(config, resolve=True)}
+                "config_yaml": OmegaConf.to_yaml(config, resolve=True), "machine": processor_record()}
 
     def _state(self) -> dict[str, Any]:
         """Everything exact resume needs, as tensors and plain data (the file loads with weights_only=True)."""
