@@ -18,6 +18,7 @@ def test_the_record_names_the_kernels_path_torch_and_threads(monkeypatch):
     monkeypatch.delenv("MKL_ENABLE_INSTRUCTIONS")
     assert processor_record()["mkl_instructions"] == ""  # MKL's own choice
     assert (record["torch"], record["threads"]) == (torch.__version__, torch.get_num_threads())
+    assert type(record["torch"]) is str  # not torch's TorchVersion, which a weights_only load of a checkpoint refuses
     assert record["cpu"]
 
 
