@@ -8,7 +8,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import torch
-from tensordict.nn import TensorDictModule
+from tensordict import TensorDictBase
+from tensordict.nn import InteractionType, TensorDictModule, TensorDictModuleBase
+from tensordict.nn.probabilistic import interaction_type
 from torch import nn
 from torchrl.modules import MLP, ProbabilisticActor, ValueOperator
 
@@ -94,6 +96,42 @@ def logits_network(actor: torch.nn.Module) -> torch.nn.Module | None:
             and not distribution.distribution_kwargs):
         return logits.module
     return None
+
+
+class CategoricalSampler(TensorDictModuleBase):
+    """A categorical actor's policy step for collection: ``observation -> action, action_log_prob``.
+
+    Under ``ExplorationType.RANDOM`` (a collector's) it draws what ``actor`` would, bit for bit and from the same
+    draws of the default generator, computed as ``torch.distributions.Categorical`` does: normalised logits, their
+    softmax, one ``torch.multinomial`` draw with replacement, the drawn action's normalised logit. Under any other
+    exploration type (or none) it takes the most probable action, as the actor's deterministic mode does. It skips
+    what the ``ProbabilisticActor`` adds around that: the ``Distribution`` object, tensordict's module plumbing
+    (which asks ``importlib`` whether pandas is installed on every call) and the ``logits`` it writes into every
+    stored decision. Its parameters are ``actor``'s.
+    """
+
+    def __init__(self, actor: ProbabilisticActor):
+        super().__init__()
+        network = logits_network(actor)
+        if network is None:
+            raise ValueError("CategoricalSampler needs a categorical actor built by make_actor")
+        self.actor = actor
+        self.in_keys = ["observation"]
+        self.out_keys = ["action", "action_log_prob"]
+        self._logits = (network,)  # a tuple: the network stays registered once, under ``actor``
+
+    def forward(self, tensordict: TensorDictBase) -> TensorDictBase:
+        logits = self._logits[0](tensordict.get("observation"))
+        logits = logits - logits.logsumexp(-1, keepdim=True)
+        probabilities = logits.softmax(-1)
+        if interaction_type() is InteractionType.RANDOM:
+            action = torch.multinomial(probabilities.reshape(-1, probabilities.shape[-1]), 1, True)
+            action = action.reshape(logits.shape[:-1])
+        else:
+            action = probabilities.argmax(-1)
+        tensordict.set("action", action)
+        tensordict.set("action_log_prob", logits.gather(-1, action.unsqueeze(-1)).squeeze(-1))
+        return tensordict
 
 
 class MeanProbabilityLogits(nn.Module):

@@ -37,7 +37,7 @@ from agrl.rl.checkpoint import CheckpointError, kept_checkpoint, load_module_sta
 from agrl.rl.curriculum import SharedScaleGuidanceEnv, promoted_scale, shared_scale, start_distribution
 from agrl.rl.evaluation import instruction_latency_ms, run_episodes, search_objective, summarise, write_evaluation
 from agrl.rl.metrics import MetricsLog, episode_statistics, progress_line
-from agrl.rl.models import make_agent
+from agrl.rl.models import CategoricalSampler, make_agent
 from agrl.rl.ppo import (
     CompiledLoss,
     TrainingDiverged,
@@ -117,26 +117,26 @@ class Trainer:
         return train, periodic
 
     def _make_collector(self) -> Collector | MultiSyncCollector:
-        """``ppo.collector_workers=1``: one Collector stepping ``self.env`` here (exact resume carries its rows).
+        """The actor collects as a :class:`CategoricalSampler`; episodes get ids if the method reads them.
+        ``ppo.collector_workers=1``: one Collector stepping ``self.env`` here (exact resume carries its rows).
         N > 1: TorchRL's MultiSyncCollector, N processes of ``num_envs / N`` envs each, batches concatenated along
         the env dimension; the actor's weights and the curriculum's scale (``self.worker_scale``, shared memory)
         go to the workers before each batch. The config keeps N > 1 from what needs ``self.env`` to collect
         (resume, policy reuse, finetune)."""
-        workers = self.cfg.ppo.collector_workers
+        workers, policy, ids = self.cfg.ppo.collector_workers, CategoricalSampler(self.actor), self.method.episode_ids
         if workers == 1:
-            return Collector(self.env, self.actor, frames_per_batch=self.frames_per_batch, total_frames=-1,
-                             device=self.device, auto_register_policy_transforms=False)
-        envs_per_worker = self.cfg.ppo.num_envs // workers
-        make_envs = [functools.partial(SharedScaleGuidanceEnv, self.params, num_envs=envs_per_worker,
-                                       device=self.device, seed=None,  # seeded below
-                                       observation=self.cfg.agent.observation)
+            return Collector(self.env, policy, frames_per_batch=self.frames_per_batch, total_frames=-1,
+                             device=self.device, auto_register_policy_transforms=False, track_traj_ids=ids)
+        per_worker = self.cfg.ppo.num_envs // workers
+        make_envs = [functools.partial(SharedScaleGuidanceEnv, self.params, num_envs=per_worker, device=self.device,
+                                       seed=None, observation=self.cfg.agent.observation)  # seeded below
                      for _ in range(workers)]
         # The scale goes as an env kwarg: TorchRL cloudpickles the env factory (a copy of any tensor in it) but
         # hands create_env_kwargs to the process itself, which torch.multiprocessing pickles as shared storage.
         collector = MultiSyncCollector(
-            make_envs, self.actor, create_env_kwargs=[{"scale": self.worker_scale}] * workers,
+            make_envs, policy, create_env_kwargs=[{"scale": self.worker_scale}] * workers,
             frames_per_batch=self.frames_per_batch, total_frames=-1, device=self.device, cat_results=0,
-            update_at_each_batch=True, use_buffers=True,
+            update_at_each_batch=True, use_buffers=True, track_traj_ids=ids,
             num_threads=torch.get_num_threads(),  # this process's threads: the PPO update
             auto_register_policy_transforms=False)
         # Each worker's env generator (distinct seeds from `seed`) and its torch generator, which samples the

@@ -1,4 +1,5 @@
-"""The actor networks' helpers: the logits accessor and the ensemble of several actors (agrl.rl.models)."""
+"""The actor networks' helpers: the logits accessor, the ensemble of several actors and the collection-time sampler
+(agrl.rl.models)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from tensordict import TensorDict
 from torchrl.envs import ExplorationType, set_exploration_type
 
 from agrl.core.observation import observation_size
-from agrl.rl.models import logits_network, make_actor, make_critic, make_ensemble_actor
+from agrl.rl.models import CategoricalSampler, logits_network, make_actor, make_critic, make_ensemble_actor
 
 
 def _actor(seed: int):
@@ -53,3 +54,54 @@ def test_the_ensemble_flies_the_mean_of_its_members_probabilities():
 def test_an_ensemble_refuses_what_is_not_an_actor_of_make_actor():
     with pytest.raises(ValueError, match="make_actor"):
         make_ensemble_actor([_actor(0), make_critic([16], "tanh")])
+
+
+@pytest.mark.parametrize("batch", [(256,), (32, 8)])
+@pytest.mark.parametrize("num_actions", [7, 19])
+def test_the_sampler_draws_the_actors_actions_bit_for_bit(batch, num_actions):
+    """A collector's policy step: the same actions and log-probabilities as the ProbabilisticActor, from the same
+    draws of the default generator, so a run collected with either is the same run."""
+    torch.manual_seed(3)
+    actor = make_actor([16, 16], "tanh", num_actions=num_actions)
+    with torch.no_grad():
+        logits_network(actor)[-1].weight.mul_(30.0)  # varied probabilities, not near-uniform ones
+    observations = _observations(256).reshape(*batch)
+    with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):
+        torch.manual_seed(11)
+        expected = actor(observations.clone())
+        torch.manual_seed(11)
+        sampled = CategoricalSampler(actor)(observations.clone())
+        after = torch.rand(1)  # both consumed the generator alike
+        torch.manual_seed(11)
+        actor(observations.clone())
+        assert torch.equal(after, torch.rand(1))
+    assert set(sampled.keys()) == {"observation", "action", "action_log_prob"}
+    assert sampled["action"].dtype == expected["action"].dtype and sampled["action"].shape == batch
+    assert torch.equal(sampled["action"], expected["action"])
+    assert torch.equal(sampled["action_log_prob"], expected["action_log_prob"])
+    assert len(set(sampled["action"].flatten().tolist())) > 1
+
+
+@pytest.mark.parametrize("exploration", [ExplorationType.DETERMINISTIC, ExplorationType.MODE, None])
+def test_the_sampler_takes_the_actors_deterministic_action_outside_random_exploration(exploration):
+    """Also with no exploration type set, as when a collector first runs its policy to learn its outputs."""
+    actor, observations = _actor(0), _observations()
+    with torch.no_grad(), set_exploration_type(ExplorationType.DETERMINISTIC):
+        expected = actor(observations.clone())
+    with torch.no_grad(), set_exploration_type(exploration):
+        chosen = CategoricalSampler(actor)(observations.clone())
+    assert set(chosen.keys()) == {"observation", "action", "action_log_prob"}
+    assert torch.equal(chosen["action"], expected["action"])
+    assert torch.equal(chosen["action_log_prob"], expected["action_log_prob"])
+
+
+def test_the_sampler_shares_the_actors_parameters_once():
+    actor = _actor(0)
+    sampler = CategoricalSampler(actor)
+    assert [id(parameter) for parameter in sampler.parameters()] == [id(parameter) for parameter in actor.parameters()]
+    assert sampler.state_dict().keys() == {f"actor.{name}" for name in actor.state_dict()}
+
+
+def test_the_sampler_refuses_what_is_not_an_actor_of_make_actor():
+    with pytest.raises(ValueError, match="make_actor"):
+        CategoricalSampler(make_critic([16], "tanh"))

@@ -11,6 +11,7 @@ from tensordict import TensorDictBase
 
 from agrl.report import read_metrics
 from agrl.rl.checkpoint import load_checkpoint
+from agrl.rl.reuse import TRAJECTORY_KEY
 from agrl.rl.trainer import Trainer, TrainingDiverged
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
@@ -221,6 +222,16 @@ def test_buffer_keeps_only_the_fields_the_update_reads(tmp_path, compose_train, 
     trainer.learn(data)
     stored = set(trainer.buffer[:].keys(True, True)) - {"index"}  # "index": the buffer adds it on reading
     assert stored == {"observation", "action", "action_log_prob", "advantage", "value_target", "state_value"}
+    trainer.collector.shutdown()
+
+
+@pytest.mark.parametrize(("method", "numbered"), [((), False), (("method=reuse",), True)])
+def test_the_collector_numbers_episodes_only_for_a_method_that_reads_them(tmp_path, compose_train, tiny_args, method,
+                                                                          numbered):
+    trainer = Trainer(compose_train(*tiny_args({}), *method), tmp_path / "run")
+    data = next(iter(trainer.collector))
+    assert (TRAJECTORY_KEY in data.keys(True)) is numbered
+    assert "logits" not in data.keys()  # the sampler's batch: the update recomputes the logits it needs
     trainer.collector.shutdown()
 
 

@@ -33,6 +33,9 @@ class Method:
     """
 
     config_class: ClassVar[type[MethodConfig]] = MethodConfig
+    #: Whether each collected row carries its episode's id (TorchRL's ``("collector", "traj_ids")``): bookkeeping
+    #: on every decision the collector does only for a method that reads it.
+    episode_ids: ClassVar[bool] = False
 
     def __init__(self, config: MethodConfig):
         self.config = config

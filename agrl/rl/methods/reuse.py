@@ -63,6 +63,7 @@ class PolicyReuse(FromBaseline):
     """Algorithm 1 as a replay-buffer transform, with the PPO targets of relabelled rows and its dashboards."""
 
     config_class = ReuseConfig
+    episode_ids = True  # the transform finds each row's episode by them (agrl.rl.reuse.carry)
     transform: PolicyReuseTransform | None = None
 
     def starts_from_baseline(self) -> bool:
