@@ -23,6 +23,7 @@ from torchrl.envs import ExplorationType, set_exploration_type
 
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import GuidanceEnv
+from agrl.rl.models import CategoricalSampler, logits_network
 
 
 @dataclass
@@ -54,7 +55,8 @@ _FINAL_KEYS = ("aircraft_state", "destination_state", "outcome", "step_count", "
 def run_episodes(
     env: GuidanceEnv, actor, trajectories: int = 0, reset: TensorDictBase | None = None
 ) -> EpisodeRecords:
-    """Run one episode per env row with the actor's deterministic (argmax) action.
+    """Run one episode per env row with the actor's deterministic (argmax) action (a categorical actor of
+    :func:`~agrl.rl.models.make_actor` steps as its :class:`~agrl.rl.models.CategoricalSampler`: the same actions).
 
     Each decision steps only the rows still flying (:meth:`GuidanceEnv.transition`, padded to
     :data:`ROW_MULTIPLE` rows), so an evaluation costs its episodes' decisions rather than its longest episode's
@@ -77,9 +79,10 @@ def run_episodes(
     speed, turn_rate = td["destination_speed"], td["destination_turn_rate"]
     rows = torch.arange(count, device=env.device)  # the env rows still flying, in order
     state = td
+    policy = CategoricalSampler(actor) if logits_network(actor) is not None else actor
     with set_exploration_type(ExplorationType.DETERMINISTIC):
         for _ in range(env.params.max_decisions):
-            state = actor(state)
+            state = policy(state)
             speed, turn_rate = env.next_destination_motion(speed, turn_rate)
             step = _aligned_transition(env, state, speed[rows], turn_rate[rows])
             if traced:

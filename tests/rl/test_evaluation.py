@@ -204,6 +204,17 @@ def test_run_episodes_flies_the_episodes_of_the_env_step(compose_train, tiny_arg
     assert_same_records(result, expected)
 
 
+def test_run_episodes_flies_any_policy_module_as_it_flies_the_actor(params, actor):
+    """An actor of make_actor flies as its CategoricalSampler; any other module (here the same actor inside a
+    TensorDictSequential) is called as it is: the same episodes either way."""
+    from tensordict.nn import TensorDictSequential
+
+    wrapped = TensorDictSequential(actor)
+    result = run_episodes(GuidanceEnv(params, num_envs=16, seed=5), wrapped, trajectories=4)
+    assert_same_records(result, run_episodes(GuidanceEnv(params, num_envs=16, seed=5), actor, trajectories=4))
+    assert len(set(result.instructions.tolist())) > 1
+
+
 @pytest.mark.slow  # the training's compiled simulator: half a minute to compile on a cold cache
 def test_run_episodes_flies_the_episodes_of_the_env_step_with_the_compiled_simulator():
     """With the compiled simulator a row's result depends on its place in the batch unless the batch is a whole
