@@ -4,6 +4,7 @@ so that later processes load it instead of compiling again."""
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import platform
 import re
@@ -79,7 +80,74 @@ def keep_kernels_per_instruction_set() -> Path:
         return Path(chosen)
     folder = Path(default_cache_dir()) / f"agrl-{torch.backends.cpu.get_cpu_capability().lower()}"
     os.environ[INDUCTOR_CACHE_VARIABLE] = str(folder)
+    reuse_vector_probe(folder)
     return folder
+
+
+#: The file, in agrl's folder of torch's compile cache, recording what torch's vector instruction probe found here.
+VECTOR_PROBE_RECORD = "vector-probe.json"
+
+
+def reuse_vector_probe(folder: Path) -> bool:
+    """Spare this process most of torch's probe of the vector instruction sets where an earlier one on this machine
+    found every set the processor lists usable; whether it was spared.
+
+    Before the first kernel a process compiles or loads, torch (2.13) builds a test library for each vector
+    instruction set ``/proc/cpuinfo`` lists and loads each in a child Python
+    (``torch._inductor.cpu_vec_isa.valid_vec_isa_list``); with its further checks of some sets' extensions that is
+    about 2.5 s of such a process's start on the 2-core VM, of which torch's ``cpp.vec_isa_ok`` setting skips about
+    1 s (the extensions are still checked). The sets it finds usable are recorded in ``folder``
+    (:func:`keep_kernels_per_instruction_set` passes agrl's own, machine-local one) with what decides them: the
+    processor's flags, torch's version and the Python. A later process with the same, where the probe had found
+    every listed set usable, sets ``vec_isa_ok``: torch then lists the same sets and builds with the same flags
+    without building and loading the test libraries again. Anything else (no or another record, a set the probe
+    turned down, a user's own ``TORCHINDUCTOR_VEC_ISA_OK``, not Linux on x86-64) leaves torch to probe, and the
+    record is written anew."""
+    import platform as platform_module
+
+    from torch._inductor import config as inductor_config
+    from torch._inductor import cpu_vec_isa
+
+    if inductor_config.cpp.vec_isa_ok is not None or platform_module.machine() not in ("x86_64", "AMD64"):
+        return False
+    flags = _cpu_flags()
+    try:  # the sets torch would probe: those whose flags the processor lists, in torch's order of preference
+        listed = [str(isa) for isa in cpu_vec_isa.supported_vec_isa_list
+                  if all(flag in cpu_vec_isa.x86_isa_checker() for flag in str(isa).split())]
+    except AttributeError:  # another torch: leave it to probe
+        return False
+    if not flags:
+        return False
+    setting = {"flags": flags, "torch": torch.__version__, "python": sys.executable}
+    path = folder / VECTOR_PROBE_RECORD
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError):
+        record = None
+    if isinstance(record, dict) and record.get("setting") == setting and record.get("usable") == listed:
+        inductor_config.cpp.vec_isa_ok = True  # every listed set passed this machine's probe
+        return True
+    usable = [str(isa) for isa in cpu_vec_isa.valid_vec_isa_list()]  # torch's probe, as its first kernel would run it
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        partial = path.with_name(f"{path.name}.{os.getpid()}.partial")
+        partial.write_text(json.dumps({"setting": setting, "usable": usable}))
+        os.replace(partial, path)
+    except OSError:
+        pass  # not kept: the next process probes again
+    return False
+
+
+def _cpu_flags() -> list[str]:
+    """The first processor's flags in ``/proc/cpuinfo``, sorted (empty where there is none)."""
+    try:
+        with open("/proc/cpuinfo") as cpuinfo:
+            for line in cpuinfo:
+                if line.startswith("flags"):
+                    return sorted(line.partition(":")[2].split())
+    except OSError:
+        pass
+    return []
 
 
 class CachedRowwiseCompile:

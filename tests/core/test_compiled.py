@@ -16,6 +16,7 @@ from agrl.core.compiled import (
     CACHE_VARIABLE,
     INDUCTOR_CACHE_VARIABLE,
     KEPT_COMPILATIONS,
+    VECTOR_PROBE_RECORD,
     CachedRowwiseCompile,
     EagerFallback,
     compile_cache_dir,
@@ -287,3 +288,77 @@ def test_a_compilation_on_the_avx2_path_is_not_mixed_up_with_one_on_avx512():
     process leaves the AVX-512 graph in the user's cache (compiled, or found there), which the second would find."""
     assert float(_run_python(_VECTORISED)) < 1e-3
     assert float(_run_python(_VECTORISED, ATEN_CPU_CAPABILITY="avx2")) < 1e-3
+
+
+# ---------------------------------------------------------------- torch's probe of the vector instruction sets
+#: In a new process: agrl's reuse of the probe for the folder in argv[1]; with argv[2] == "unprobed", torch's probe
+#: of a whole set (its test library, not the further checks of some sets' extensions) fails the test if it runs.
+#: Prints whether the probe was spared, the sets torch lists and its setting.
+_PROBE = """
+import json, sys
+from pathlib import Path
+from torch._inductor import config, cpu_vec_isa
+from agrl.core.compiled import reuse_vector_probe
+
+check_build = cpu_vec_isa.VecISA.check_build
+
+def probed(self, code):
+    if code == cpu_vec_isa.VecISA._avx_code:
+        raise AssertionError(f"torch probed {self}")
+    return check_build(self, code)
+
+if sys.argv[2] == "unprobed":
+    cpu_vec_isa.VecISA.check_build = probed
+spared = reuse_vector_probe(Path(sys.argv[1]))
+listed = [str(isa) for isa in cpu_vec_isa.valid_vec_isa_list()]
+print(json.dumps({"spared": spared, "usable": listed, "setting": config.cpp.vec_isa_ok}))
+"""
+
+needs_cpuinfo_flags = pytest.mark.skipif(
+    not (sys.platform == "linux" and os.uname().machine == "x86_64" and Path("/proc/cpuinfo").is_file()),
+    reason="torch probes the vector instruction sets this way on Linux on x86-64 only")
+
+
+def _probe(folder: Path, mode: str = "probed", **environment: str) -> dict:
+    import json
+
+    env = {key: value for key, value in os.environ.items() if key != "TORCHINDUCTOR_VEC_ISA_OK"}
+    env.update(environment)
+    done = subprocess.run([sys.executable, "-c", _PROBE, str(folder), mode], env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@needs_cpuinfo_flags
+def test_a_later_process_is_spared_torchs_probe_and_lists_the_same_sets(tmp_path):
+    """torch builds and loads a test library per vector instruction set in every process that compiles or loads a
+    kernel (about a second); a process after the first finds the first one's record and skips that."""
+    first = _probe(tmp_path)
+    assert not first["spared"] and first["setting"] is None
+    assert (tmp_path / VECTOR_PROBE_RECORD).is_file()
+    later = _probe(tmp_path, "unprobed")
+    assert later == {"spared": True, "usable": first["usable"], "setting": True}
+
+
+@needs_cpuinfo_flags
+def test_a_record_of_other_sets_or_another_setting_is_probed_again(tmp_path):
+    import json
+
+    first = _probe(tmp_path)
+    record_file = tmp_path / VECTOR_PROBE_RECORD
+    record = json.loads(record_file.read_text())
+    # A set the processor lists that the probe turned down: probe again, as torch would.
+    record_file.write_text(json.dumps({**record, "usable": record["usable"][1:]}))
+    again = _probe(tmp_path)
+    assert again == {"spared": False, "usable": first["usable"], "setting": None}
+    assert json.loads(record_file.read_text()) == record  # the probe's own result, recorded anew
+    record_file.write_text(json.dumps({**record, "setting": {**record["setting"], "torch": "another version"}}))
+    assert _probe(tmp_path) == again
+    assert json.loads(record_file.read_text()) == record
+
+
+@needs_cpuinfo_flags
+def test_a_users_own_vector_setting_is_left_alone(tmp_path):
+    assert _probe(tmp_path, TORCHINDUCTOR_VEC_ISA_OK="0") == {"spared": False, "usable": [], "setting": False}
+    assert not (tmp_path / VECTOR_PROBE_RECORD).exists()
