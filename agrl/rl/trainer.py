@@ -117,7 +117,7 @@ class Trainer:
         return train, periodic
 
     def _make_collector(self) -> Collector | MultiSyncCollector:
-        """The actor collects as a :class:`CategoricalSampler`; episodes get ids if the method reads them.
+        """The actor collects as a :class:`CategoricalSampler`; one Collector numbers episodes if the method reads them.
         ``ppo.collector_workers=1``: one Collector stepping ``self.env`` here (exact resume carries its rows).
         N > 1: TorchRL's MultiSyncCollector, N processes of ``num_envs / N`` envs each, batches concatenated along
         the env dimension; the actor's weights and the curriculum's scale (``self.worker_scale``, shared memory)
@@ -136,7 +136,7 @@ class Trainer:
         collector = MultiSyncCollector(
             make_envs, policy, create_env_kwargs=[{"scale": self.worker_scale}] * workers,
             frames_per_batch=self.frames_per_batch, total_frames=-1, device=self.device, cat_results=0,
-            update_at_each_batch=True, use_buffers=True, track_traj_ids=ids,
+            update_at_each_batch=True, use_buffers=True,
             num_threads=torch.get_num_threads(),  # this process's threads: the PPO update
             auto_register_policy_transforms=False)
         # Each worker's env generator (distinct seeds from `seed`) and its torch generator, which samples the
