@@ -127,7 +127,10 @@ def reuse_vector_probe(folder: Path) -> bool:
     if isinstance(record, dict) and record.get("setting") == setting and record.get("usable") == listed:
         inductor_config.cpp.vec_isa_ok = True  # every listed set passed this machine's probe
         return True
-    usable = [str(isa) for isa in cpu_vec_isa.valid_vec_isa_list()]  # torch's probe, as its first kernel would run it
+    try:
+        usable = [str(isa) for isa in cpu_vec_isa.valid_vec_isa_list()]  # torch's probe, as its first kernel would
+    except Exception:  # noqa: BLE001 - torch's own compile meets it again, where agrl falls back to eager
+        return False
     try:
         folder.mkdir(parents=True, exist_ok=True)
         partial = path.with_name(f"{path.name}.{os.getpid()}.partial")

@@ -223,11 +223,16 @@ def torch_default(monkeypatch, tmp_path):
     value counts as unset); both restored after the test."""
     import tempfile
 
+    from torch._inductor import config as inductor_config
     from torch._inductor.runtime.cache_dir_utils import default_cache_dir
 
     monkeypatch.setenv(INDUCTOR_CACHE_VARIABLE, "")
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
-    return Path(default_cache_dir())
+    # A second call may find the first one's vector probe record and tell torch so: restored after the test too
+    # (by assignment: torch's config module has no attribute for monkeypatch to delete and set back).
+    saved = inductor_config.cpp.vec_isa_ok
+    yield Path(default_cache_dir())
+    inductor_config.cpp.vec_isa_ok = saved
 
 
 def test_torchs_cache_goes_to_a_folder_of_this_instruction_set(torch_default, tmp_path):
@@ -362,3 +367,23 @@ def test_a_record_of_other_sets_or_another_setting_is_probed_again(tmp_path):
 def test_a_users_own_vector_setting_is_left_alone(tmp_path):
     assert _probe(tmp_path, TORCHINDUCTOR_VEC_ISA_OK="0") == {"spared": False, "usable": [], "setting": False}
     assert not (tmp_path / VECTOR_PROBE_RECORD).exists()
+
+
+def test_a_probe_that_fails_is_left_to_torch(tmp_path, monkeypatch):
+    """Whatever torch's probe raises reaches its own compilation, where the simulator falls back to eager; agrl's
+    reuse of it, called before, records nothing and raises nothing."""
+    from torch._inductor import config as inductor_config
+    from torch._inductor import cpu_vec_isa
+
+    from agrl.core.compiled import reuse_vector_probe
+
+    def broken():
+        raise RuntimeError("no compiler")
+
+    saved, inductor_config.cpp.vec_isa_ok = inductor_config.cpp.vec_isa_ok, None
+    monkeypatch.setattr(cpu_vec_isa, "valid_vec_isa_list", broken)
+    try:
+        assert reuse_vector_probe(tmp_path) is False
+        assert inductor_config.cpp.vec_isa_ok is None and not (tmp_path / VECTOR_PROBE_RECORD).exists()
+    finally:
+        inductor_config.cpp.vec_isa_ok = saved
