@@ -93,32 +93,28 @@ def reuse_vector_probe(folder: Path) -> bool:
     found every set the processor lists usable; whether it was spared.
 
     Before the first kernel a process compiles or loads, torch (2.13) builds a test library for each vector
-    instruction set ``/proc/cpuinfo`` lists and loads each in a child Python
+    instruction set the processor has and loads each in a child Python
     (``torch._inductor.cpu_vec_isa.valid_vec_isa_list``); with its further checks of some sets' extensions that is
     about 2.5 s of such a process's start on the 2-core VM, of which torch's ``cpp.vec_isa_ok`` setting skips about
     1 s (the extensions are still checked). The sets it finds usable are recorded in ``folder``
-    (:func:`keep_kernels_per_instruction_set` passes agrl's own, machine-local one) with what decides them: the
-    processor's flags, torch's version and the Python. A later process with the same, where the probe had found
-    every listed set usable, sets ``vec_isa_ok``: torch then lists the same sets and builds with the same flags
-    without building and loading the test libraries again. Anything else (no or another record, a set the probe
+    (:func:`keep_kernels_per_instruction_set` passes agrl's own, machine-local one) with torch's version and the
+    Python. A later process with the same, where the probe had found every set the processor lists usable, sets
+    ``vec_isa_ok``: torch then lists the same sets and builds with the same flags without building and loading the
+    test libraries again. Anything else (no or another record, a set the probe
     turned down, a user's own ``TORCHINDUCTOR_VEC_ISA_OK``, not Linux on x86-64) leaves torch to probe, and the
     record is written anew."""
-    import platform as platform_module
-
     from torch._inductor import config as inductor_config
     from torch._inductor import cpu_vec_isa
 
-    if inductor_config.cpp.vec_isa_ok is not None or platform_module.machine() not in ("x86_64", "AMD64"):
+    if inductor_config.cpp.vec_isa_ok is not None or sys.platform != "linux" or platform.machine() != "x86_64":
         return False
-    flags = _cpu_flags()
-    try:  # the sets torch would probe: those whose flags the processor lists, in torch's order of preference
+    try:  # the sets torch would probe: those the processor has, in torch's order of preference
+        has = cpu_vec_isa.x86_isa_checker()
         listed = [str(isa) for isa in cpu_vec_isa.supported_vec_isa_list
-                  if all(flag in cpu_vec_isa.x86_isa_checker() for flag in str(isa).split())]
+                  if all(flag in has for flag in str(isa).split())]
     except AttributeError:  # another torch: leave it to probe
         return False
-    if not flags:
-        return False
-    setting = {"flags": flags, "torch": torch.__version__, "python": sys.executable}
+    setting = {"torch": str(torch.__version__), "python": sys.executable}
     path = folder / VECTOR_PROBE_RECORD
     try:
         record = json.loads(path.read_text())
@@ -139,18 +135,6 @@ def reuse_vector_probe(folder: Path) -> bool:
     except OSError:
         pass  # not kept: the next process probes again
     return False
-
-
-def _cpu_flags() -> list[str]:
-    """The first processor's flags in ``/proc/cpuinfo``, sorted (empty where there is none)."""
-    try:
-        with open("/proc/cpuinfo") as cpuinfo:
-            for line in cpuinfo:
-                if line.startswith("flags"):
-                    return sorted(line.partition(":")[2].split())
-    except OSError:
-        pass
-    return []
 
 
 class CachedRowwiseCompile:

@@ -319,8 +319,8 @@ listed = [str(isa) for isa in cpu_vec_isa.valid_vec_isa_list()]
 print(json.dumps({"spared": spared, "usable": listed, "setting": config.cpp.vec_isa_ok}))
 """
 
-needs_cpuinfo_flags = pytest.mark.skipif(
-    not (sys.platform == "linux" and os.uname().machine == "x86_64" and Path("/proc/cpuinfo").is_file()),
+linux_x86 = pytest.mark.skipif(
+    not (sys.platform == "linux" and os.uname().machine == "x86_64"),
     reason="torch probes the vector instruction sets this way on Linux on x86-64 only")
 
 
@@ -335,7 +335,7 @@ def _probe(folder: Path, mode: str = "probed", **environment: str) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-@needs_cpuinfo_flags
+@linux_x86
 def test_a_later_process_is_spared_torchs_probe_and_lists_the_same_sets(tmp_path):
     """torch builds and loads a test library per vector instruction set in every process that compiles or loads a
     kernel (about a second); a process after the first finds the first one's record and skips that."""
@@ -346,7 +346,7 @@ def test_a_later_process_is_spared_torchs_probe_and_lists_the_same_sets(tmp_path
     assert later == {"spared": True, "usable": first["usable"], "setting": True}
 
 
-@needs_cpuinfo_flags
+@linux_x86
 def test_a_record_of_other_sets_or_another_setting_is_probed_again(tmp_path):
     import json
 
@@ -363,7 +363,7 @@ def test_a_record_of_other_sets_or_another_setting_is_probed_again(tmp_path):
     assert json.loads(record_file.read_text()) == record
 
 
-@needs_cpuinfo_flags
+@linux_x86
 def test_a_users_own_vector_setting_is_left_alone(tmp_path):
     assert _probe(tmp_path, TORCHINDUCTOR_VEC_ISA_OK="0") == {"spared": False, "usable": [], "setting": False}
     assert not (tmp_path / VECTOR_PROBE_RECORD).exists()
