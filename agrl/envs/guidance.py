@@ -49,6 +49,11 @@ SCENARIO_KEYS = ("aircraft_state", "destination_state", "destination_speed", "de
 HELD_TARGETS_KEY = "held_targets"
 #: Where the held targets' fields are in ``aircraft_state`` (an episode starts holding what the aircraft flies).
 _HELD_FIELDS = [AIRCRAFT_FIELDS.index(name) for name in ("heading", "z", "speed")]
+#: Rows a partial reset builds at a time (:meth:`GuidanceEnv.fresh_rows`): a multiple of twice the widest CPU
+#: vector (16 floats). ATen runs the rows of a batch after its last such pair of vectors through a scalar loop,
+#: which rounds sines, arctangents and tanh differently, so rows built in whole blocks observe bit for bit what
+#: they would in a whole batch of a multiple of this size.
+ROW_BLOCK = 64
 
 
 class GuidanceEnv(EnvBase):
@@ -254,10 +259,40 @@ class GuidanceEnv(EnvBase):
             scenario["destination_turn_rate"].reshape(count),
         ).reshape(batch)
 
-    def fresh_rows(self, count: int) -> TensorDictBase:
-        """``count`` new episodes drawn from the env's generator (flat batch ``[count]``), as a reset returns them.
+    def maybe_reset(self, tensordict: TensorDictBase) -> TensorDictBase:
+        """New episodes in the rows of ``tensordict`` (a ``step_mdp`` result) that are done, the others kept:
+        ``EnvBase.maybe_reset``'s result from the same draws, for the rows that ended only.
 
-        The gymnasium vector env restarts only its finished rows with this, instead of drawing a whole batch.
+        TorchRL's path builds a whole batch of new rows (:meth:`_reset`) and takes the done ones field by field
+        with tensordict's ``where``; a step ends a few rows of hundreds, so that was about a fifth of a
+        collector's time (``docs/benchmarks.md``, "The collector's reset"). This one draws the whole batch, as
+        :meth:`_reset` does (the random stream stays the same), builds only the done rows
+        (:meth:`fresh_rows` with ``rows``) and writes them into each field out of place; a field the new rows
+        lack (a policy's output, the collector's episode ids) is zeroed in them, as TorchRL pads it (unless every
+        row is done: TorchRL then keeps such a field, and so does this). The same
+        fields and values as ``EnvBase.maybe_reset`` where the batch is a multiple of 64 rows (tested). A reset
+        restoring saved rows (:meth:`restore_on_next_reset`) takes TorchRL's path.
+        """
+        if self._pending_state is not None:
+            return super().maybe_reset(tensordict)
+        done = tensordict.get("done")
+        if not bool(done.any()):
+            return tensordict
+        count = self.batch_size.numel()
+        rows = done.reshape(-1).nonzero().squeeze(-1)
+        if rows.numel() == count:  # TorchRL's whole reset: the new rows' fields replace those they have
+            return tensordict.update(self.fresh_rows(count))
+        _put_rows(tensordict, self.fresh_rows(count, rows), rows)
+        return tensordict
+
+    def fresh_rows(self, count: int, rows: torch.Tensor | None = None) -> TensorDictBase:
+        """``count`` new episodes drawn from the env's generator (flat batch ``[count]``), as a reset returns them;
+        with ``rows`` (indices into them, ascending) those rows only, drawn as part of the ``count``.
+
+        The gymnasium vector env restarts only its finished rows with ``fresh_rows(finished)``; the collector's
+        partial reset (:meth:`maybe_reset`) draws a whole batch, so that the random stream does not depend on how
+        many rows ended, and builds the ``rows`` it needs. It builds them in blocks of :data:`ROW_BLOCK` rows, so
+        that their observations are bit for bit those of the whole batch.
         """
         destination_state = self._destination_start.expand(count, 4).clone()
         destination_speed, destination_turn_rate = self.params.destination.initial_motion(
@@ -266,7 +301,11 @@ class GuidanceEnv(EnvBase):
         aircraft_state = sample_initial_aircraft(
             count, self.params.initial_state, destination_state, self._generator, self.device
         )
-        return self.start_rows(aircraft_state, destination_state, destination_speed, destination_turn_rate)
+        if rows is None:
+            return self.start_rows(aircraft_state, destination_state, destination_speed, destination_turn_rate)
+        padded = torch.cat((rows, rows[:1].expand((-rows.numel()) % ROW_BLOCK)))
+        return self.start_rows(aircraft_state[padded], destination_state[padded], destination_speed[padded],
+                               destination_turn_rate[padded])[:rows.numel()]
 
     def start_rows(
         self, aircraft_state: torch.Tensor, destination_state: torch.Tensor, destination_speed: torch.Tensor,
@@ -385,3 +424,27 @@ class GuidanceEnv(EnvBase):
         next_state["instruction_count"] = state["instruction_count"] + instruction.long()
         next_state["observation"] = self.observe(next_state)
         return next_state
+
+
+def _put_rows(state: TensorDictBase, new: TensorDictBase | None, rows: torch.Tensor) -> None:
+    """Every field of ``state`` with its ``rows`` (indices) replaced by ``new``'s fields, each a new tensor (the
+    old ones may be a step's stored ``next`` entries): a field ``new`` (or ``new is None``) lacks is zeroed in
+    those rows, a field only ``new`` has is added, zero in the other rows (TorchRL's padding in a partial reset)."""
+    index = (rows,)
+    for key, value in list(state.items()):
+        other = None if new is None else new._get_str(key, None)
+        if isinstance(value, TensorDictBase):
+            _put_rows(value, other, rows)
+            continue
+        if other is None:
+            other = torch.zeros((), dtype=value.dtype, device=value.device)
+        state._set_str(key, value.index_put(index, other), inplace=False, validated=True, non_blocking=False)
+    for key in () if new is None else new.keys():
+        if key in state.keys():
+            continue
+        value = new._get_str(key, None)
+        if isinstance(value, TensorDictBase):
+            state.set(key, value.empty())
+            _put_rows(state.get(key), value, rows)
+            continue
+        state.set(key, value.new_zeros((*state.batch_size, *value.shape[1:])).index_put(index, value))

@@ -8,7 +8,7 @@ from typing import Any
 
 #: others (timing repeats, calls per timing, load) say how, and stay in the JSON lines.
 BENCH_SETTING_FIELDS = ("device", "trainer", "shape", "guide", "actions", "batch", "compiled", "compile_cache",
-                        "cpu_path", "candidates", "z")
+                        "cpu_path", "candidates", "z", "reset")
 #: Fields shown as their own columns when a line has them: the comparisons a reader looks for.
 BENCH_COMPARISONS = {"speedup_vs_reference": "× the reference", "collection_s": "collection s",
                      "update_s": "update s", "first_call_seconds": "first call s"}

@@ -17,6 +17,7 @@ next batch's new episodes start in the new box, as they do in one process.
 from __future__ import annotations
 
 import torch
+from tensordict import TensorDictBase
 
 from agrl.core.initial_states import InitialStateDistribution, scale_distribution
 from agrl.core.parameters import GuidanceParameters
@@ -61,6 +62,6 @@ class SharedScaleGuidanceEnv(GuidanceEnv):
             self.set_initial_state_distribution(start_distribution(self._full_box_params, scale))
             self._applied_scale = scale
 
-    def _reset(self, tensordict, **kwargs):
+    def fresh_rows(self, count: int, rows: torch.Tensor | None = None) -> TensorDictBase:
         self._follow_scale()
-        return super()._reset(tensordict, **kwargs)
+        return super().fresh_rows(count, rows)

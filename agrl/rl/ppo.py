@@ -23,7 +23,13 @@ class TrainingDiverged(RuntimeError):
 
 
 def make_advantage(gamma: float, gae_lambda: float, critic, device: torch.device) -> GAE:
-    """GAE with the critic as value network (``critic=None``: values are supplied with the data)."""
+    """GAE with the critic as value network (``critic=None``: values are supplied with the data).
+
+    The critic runs over the observations and again over their successors (TorchRL's default). TorchRL's single
+    pass over a batch's ``T + 1`` observations (``shifted=True``) is shorter, but the critic's matrix products then
+    round some rows differently (torch's AVX2 path, 2 threads, ``make train``'s shape): the shipped agent would no
+    longer be reproduced bit for bit.
+    """
     return GAE(gamma=gamma, lmbda=gae_lambda, value_network=critic, average_gae=False, device=device)
 
 
@@ -141,11 +147,18 @@ def ppo_update(
         updates += 1
         if sums is None:
             logged = [key for key in LOGGED_LOSS_TERMS if key in losses.keys()]
-        # Summed as one tensor and read once per update, not once per term and minibatch (about 2 % of an update).
-        terms = torch.stack([losses[key].detach().float().mean() for key in logged]).double()
+        # Summed as one tensor and read once per update, not once per term and minibatch; TorchRL's terms are
+        # float32 scalars, stacked as they are, outside autograd (no cast, mean or detach of each).
+        with torch.no_grad():
+            terms = torch.stack([_scalar(losses[key]) for key in logged]).double()
         sums = terms if sums is None else sums + terms
     means = {} if sums is None else dict(zip(logged, (sums / updates).tolist(), strict=True))
     return {**means, "minibatches": float(updates)}
+
+
+def _scalar(term: torch.Tensor) -> torch.Tensor:
+    """A logged loss term as a float32 scalar (TorchRL's are float32 scalars already: returned as they are)."""
+    return term if term.dim() == 0 and term.dtype == torch.float32 else term.float().mean()
 
 
 def annealed_learning_rate(initial: float, frames: int, total_frames: int) -> float:

@@ -160,6 +160,65 @@ def test_partial_reset_only_changes_masked_rows(make_params):
     assert not after["done"].any()
 
 
+@pytest.mark.parametrize(("kind", "num_envs", "actions", "observation"), [
+    (MotionKind.FIXED, 512, "maneuvers", "relative"),  # the defaults' batch
+    (MotionKind.IRREGULAR, 2048, "maneuvers", "relative"),  # make train's; the irregular motion draws too
+    (MotionKind.FIXED, 192, "targets", "relative"),
+    (MotionKind.CURVED, 128, "maneuvers", "absolute"),
+])
+def test_maybe_reset_gives_torchrls_partial_reset_bit_for_bit(kind, num_envs, actions, observation, make_params,
+                                                              compose_parameters):
+    from torchrl.envs import EnvBase
+
+    params = make_params(kind)
+    if actions == "targets":
+        params = dataclasses.replace(params, actions=compose_parameters("actions=targets").actions)
+    env = GuidanceEnv(params, num_envs=num_envs, seed=4, observation=observation)
+    state = env.reset()
+    state["collector", "traj_ids"] = torch.arange(num_envs)  # a nested field, as a collector adds
+    choose = torch.Generator().manual_seed(0)
+    for step, ended in enumerate((1, 7, 64, 100, num_envs)):
+        after_step = env.step_mdp(env.rand_step(state.clone()))
+        after_step["action_log_prob"] = torch.randn(num_envs, generator=choose)  # a field the new rows lack
+        after_step["done"][torch.randperm(num_envs, generator=choose)[:ended]] = True
+        if step == 2:
+            del after_step["episode_return"]  # a field only the new rows have
+        draws = env.generator_state()
+        expected = EnvBase.maybe_reset(env, after_step.clone())
+        draws_after = env.generator_state()
+        env.set_generator_state(draws)
+        state = env.maybe_reset(after_step.clone())
+        assert torch.equal(env.generator_state(), draws_after)  # the same draws, whatever the number of ended rows
+        assert set(state.keys(True, True)) == set(expected.keys(True, True))
+        for key in expected.keys(True, True):
+            assert state[key].dtype == expected[key].dtype, key
+            assert torch.equal(state[key], expected[key]), (key, ended)
+
+
+def test_maybe_reset_leaves_the_step_it_follows_untouched(make_params):
+    env = GuidanceEnv(make_params(), num_envs=64, seed=1)
+    step = env.rand_step(env.reset())
+    step["next", "done"][::3] = True
+    before = step.clone()
+    after = env.maybe_reset(env.step_mdp(step))
+    assert not after["done"].any()
+    for key in before.keys(True, True):  # a collector stores the step: its fields are not written over
+        assert torch.equal(step[key], before[key]), key
+
+
+def test_fresh_rows_with_rows_are_those_rows_of_the_whole_batch(make_params):
+    env = GuidanceEnv(make_params(MotionKind.IRREGULAR), num_envs=1, seed=0)
+    draws = env.generator_state()
+    whole = env.fresh_rows(256)
+    rows = torch.tensor([0, 3, 100, 101, 255])
+    env.set_generator_state(draws)
+    some = env.fresh_rows(256, rows)
+    assert some.batch_size == (5,)
+    for key in whole.keys():
+        assert torch.equal(some[key], whole[key][rows]), key
+    assert env.fresh_rows(256, rows[:0]).batch_size == (0,)
+
+
 def test_rollout_auto_resets_done_rows(make_params):
     env = GuidanceEnv(make_params(max_decisions=2), num_envs=2, seed=3)
     td = env.rollout(5, policy=cycling_policy, break_when_any_done=False)
