@@ -44,9 +44,11 @@ BENCHMARK_RUNS = {
              "ppo.num_envs=16", "ppo.steps_per_env=4", "ppo.minibatch_size=32"),
     "profile": ("benchmarks.profile_iteration", "ppo.num_envs=16", "ppo.steps_per_env=8", "ppo.minibatch_size=64",
                 "simulation.compile=false", "threads=1", "--warmup", "1", "--iterations", "2", "--top", "5"),
+    "reset": ("benchmarks.bench_reset", "ppo.num_envs=64", "ppo.steps_per_env=8", "ppo.minibatch_size=128",
+              "simulation.compile=false", "simulation.max_decisions=3", "threads=1", "--warmup", "1", "--pairs", "2"),
 }
 #: The runs that do not need stable-baselines3.
-WITHOUT_SB3 = ("bench", "profile")
+WITHOUT_SB3 = ("bench", "profile", "reset")
 
 
 @pytest.fixture(scope="module")
@@ -107,6 +109,23 @@ def test_profile_lists_the_top_functions_of_each_phase(benchmark_runs):
     assert len(rows) == 2 * 5  # --top 5 per phase
     assert all(int(row[2]) > 0 and 0 <= int(row[3].strip().removesuffix(" %")) <= 100 for row in rows)
     assert "agrl/rl/trainer.py" in completed.stdout  # the update is the package's own Trainer.learn
+
+
+def test_reset_benchmark_times_both_resets_in_pairs(benchmark_runs):
+    """``python -m benchmarks.bench_reset``: a machine line, each reset's median batch time over its pairs (episodes
+    end every 3 decisions there, so both resets run), then the median of the pairs' ratios."""
+    completed = benchmark_runs["reset"]
+    assert completed.returncode == 0, completed.stderr
+    records = [json.loads(line) for line in completed.stdout.splitlines()]
+    assert records[0]["name"] == "machine"
+    batches = {record["reset"]: record for record in records if record["name"] == "collector_batch_seconds"}
+    assert set(batches) == {"agrl", "torchrl"}
+    for record in batches.values():
+        assert record["shape"] == "64x8" and record["pairs"] == 2 and len(record["each_s"]) == 2
+        assert record["value"] == pytest.approx(statistics.median(record["each_s"]), abs=1e-4)
+    (ratio,) = [record for record in records if record["name"] == "ratio_reset_agrl_over_torchrl"]
+    pairs = [new / old for new, old in zip(batches["agrl"]["each_s"], batches["torchrl"]["each_s"], strict=True)]
+    assert ratio["value"] == pytest.approx(statistics.median(pairs), rel=5e-2)  # from the rounded seconds
 
 
 def test_profile_refuses_a_count_below_one(capsys):
