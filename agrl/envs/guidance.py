@@ -261,18 +261,15 @@ class GuidanceEnv(EnvBase):
 
     def maybe_reset(self, tensordict: TensorDictBase) -> TensorDictBase:
         """New episodes in the rows of ``tensordict`` (a ``step_mdp`` result) that are done, the others kept:
-        ``EnvBase.maybe_reset``'s result from the same draws, for the rows that ended only.
+        ``EnvBase.maybe_reset``'s fields and values from the same draws (tested, for batches of a multiple of 64).
 
-        TorchRL's path builds a whole batch of new rows (:meth:`_reset`) and takes the done ones field by field
-        with tensordict's ``where``, where a step ends a few rows of hundreds. This one draws the whole batch as
-        :meth:`_reset` does (the random stream stays the same), builds only the done rows (:meth:`fresh_rows`
-        with ``rows``) and writes them into each field out of place; a field the new rows lack (a policy's
-        output, the collector's episode ids) is zeroed in them, as TorchRL pads it (unless every row is done:
-        TorchRL then keeps such a field, and so does this). The same fields and values as
-        ``EnvBase.maybe_reset`` where the batch is a multiple of 64 rows (tested); a collector's batch in 0.94 x
-        the time at ``make train``'s 2048 rows, 0.98 x at the defaults' 512 (``python -m
-        benchmarks.bench_reset``). A reset restoring saved rows (:meth:`restore_on_next_reset`) takes TorchRL's
-        path.
+        TorchRL's path builds a whole batch of new rows (:meth:`_reset`) and merges the done ones field by field
+        with tensordict's ``where``. This one draws the whole batch (the random stream stays the same), builds only
+        the done rows (:meth:`fresh_rows` with ``rows``) and writes them into each field out of place; a field the
+        new rows lack (a policy's output, the collector's episode ids) is zeroed in them, as TorchRL pads it
+        (unless every row is done: TorchRL then keeps it, and so does this). A collector's batch in 0.94 x the
+        time at ``make train``'s 2048 rows, 0.98 x at the defaults' 512 (``python -m benchmarks.bench_reset``). A
+        reset restoring saved rows (:meth:`restore_on_next_reset`) takes TorchRL's path.
         """
         if self._pending_state is not None:
             return super().maybe_reset(tensordict)
