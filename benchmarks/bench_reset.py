@@ -30,8 +30,9 @@ from benchmarks import torchrl_logs_to_stderr
 from benchmarks.bench import emit, machine_record
 
 
-def bench_reset(overrides: Sequence[str], warmup: int, pairs: int) -> dict[str, list[float]]:
-    """``{"agrl": [seconds per batch], "torchrl": [...]}``, one of each per pair."""
+def bench_reset(overrides: Sequence[str], warmup: int, pairs: int) -> tuple[dict[str, list[float]], str]:
+    """``{"agrl": [seconds per batch], "torchrl": [...]}``, one of each per pair, and the batch's shape
+    (``<envs>x<decisions>``)."""
     from torchrl.envs import EnvBase
 
     from agrl.config import compose_config, load_config
@@ -57,7 +58,7 @@ def bench_reset(overrides: Sequence[str], warmup: int, pairs: int) -> dict[str, 
                 seconds[name].append(time.perf_counter() - start)
                 trainer.learn(data)
         trainer.collector.shutdown()
-    return seconds
+    return seconds, f"{config.ppo.num_envs}x{config.ppo.steps_per_env}"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -69,11 +70,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     torchrl_logs_to_stderr()
     emit(machine_record(torch.device("cpu")))
-    seconds = bench_reset(args.overrides, args.warmup, args.pairs)
-    from agrl.config import compose_config, load_config
-
-    ppo = load_config(compose_config(*args.overrides)).ppo
-    shape = f"{ppo.num_envs}x{ppo.steps_per_env}"
+    seconds, shape = bench_reset(args.overrides, args.warmup, args.pairs)
     for name, values in seconds.items():
         emit({"name": "collector_batch_seconds", "reset": name, "shape": shape,
               "value": round(statistics.median(values), 4), "unit": "s/batch", "pairs": len(values),
