@@ -5,15 +5,32 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 ARGS ?=
 
-.PHONY: install train train-two-stage train-fast train-targets train-args test test-slow bench lint clean experiments-table3 experiments-moving report wheel-check
+.PHONY: install compile train train-two-stage train-fast train-targets train-args test test-slow bench lint clean experiments-table3 experiments-moving report wheel-check
+
+# make train's compilations made ahead, as the last step of install, so that its first run loads them instead of
+# compiling: one iteration of its recipe on its processor path, into a folder thrown away after. torch.compile keeps
+# what it made (the simulator in ~/.cache/agrl/compiled, the loss's kernels in torch's cache; docs/training.md,
+# "Compilations kept between runs"). About 40 s on 2 cores the first time, seconds once kept. `make compile` runs it
+# again (after upgrading torch, or if torch's cache in /tmp was cleared).
+define compile_train
+	@echo "compiling make train's simulator and loss ahead of its runs (about 40 s the first time)"
+	@folder=$$(mktemp -d) && \
+	  if $(SHIPPED_CPU_PATH) $(PY) -m agrl.train +experiment=switch_schedule ppo.total_frames=1 eval.episodes=32 \
+	    progress=false hydra.run.dir=$$folder/run > $$folder/compile.log 2>&1; \
+	  then rm -rf $$folder; else cat $$folder/compile.log >&2; rm -rf $$folder; exit 1; fi
+endef
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --upgrade pip >/dev/null
 	$(PY) -m pip install -e ".[dev,bench]"
+	$(compile_train)
 	touch $(STAMP)
 
 install: $(STAMP)
+
+compile: install
+	$(compile_train)
 
 # The main job on its defaults: the shipped baseline (docs/results/baseline.md), about 1.5 minutes on 2 cores. One run
 # (+experiment=switch_schedule): PPO from scratch at a switch cost of 0.104 until a periodic evaluation, confirmed on

@@ -427,3 +427,29 @@ def test_the_equal_work_floors_decision_end_is_the_envs(budget_reached):
     torch.testing.assert_close(reward, expected["reward"].squeeze(-1), rtol=0, atol=0)
     assert torch.equal(done, expected["done"].squeeze(-1))
     assert bool(done.all()) == budget_reached
+
+
+def test_make_train_benchmark_tells_the_shipped_agent_from_another(tmp_path):
+    """``benchmarks.make_train`` marks a run's agent as the shipped one only if actor and critic match bit for bit."""
+    import torch
+
+    from benchmarks.make_train import SHIPPED_AGENT, same_agent
+
+    shipped = REPO / SHIPPED_AGENT
+    assert same_agent(shipped, shipped)
+    assert not same_agent(shipped, REPO / "agrl/baselines/fixed_baseline_stage1.pt")
+    nudged = torch.load(shipped, map_location="cpu", weights_only=True)
+    name = next(iter(nudged["critic"]))
+    nudged["critic"][name] = torch.nextafter(nudged["critic"][name], torch.tensor(float("inf")))
+    torch.save(nudged, tmp_path / "nudged.pt")
+    assert not same_agent(shipped, tmp_path / "nudged.pt")
+
+
+def test_make_train_benchmark_reads_the_runs_last_line():
+    from benchmarks.make_train import parse_args, run_summary
+
+    assert run_summary('iter 1 | ...\n{"success_rate": 0.999, "iterations": 124}\n') == {
+        "success_rate": 0.999, "iterations": 124}
+    assert parse_args([]).arms == ["install", "empty"]
+    with pytest.raises(SystemExit):
+        parse_args(["--arms", "hot"])
