@@ -137,6 +137,20 @@ def reuse_vector_probe(folder: Path) -> bool:
     return False
 
 
+#: Rows a batch is padded to a multiple of wherever a row's bits must not depend on the batch it is computed in:
+#: the compiled kernel computes the rows after its last full vector (8 floats with AVX2, 16 with AVX-512) in a second
+#: copy of its loop, and ATen's eager loops run the rows after their last pair of vectors through a scalar loop; both
+#: round sines, arctangents and tanh differently in places. 64 is a multiple of twice the widest vector.
+WHOLE_VECTOR_ROWS = 64
+
+
+def padded_rows(index: torch.Tensor) -> torch.Tensor:
+    """``index`` (rows of a batch, 1-D) followed by copies of its first row up to a multiple of
+    :data:`WHOLE_VECTOR_ROWS`: compute on ``batch[padded_rows(index)]`` and keep the first ``index.numel()`` rows,
+    and each row comes out as in any batch of whole vectors."""
+    return torch.cat((index, index[:1].expand(-index.numel() % WHOLE_VECTOR_ROWS)))
+
+
 class CachedRowwiseCompile:
     """``fn`` compiled with ``torch.compile`` once for any number of rows, kept on disk for later processes.
 
@@ -144,7 +158,7 @@ class CachedRowwiseCompile:
     results depends on row i of the arguments only (so one or no row can be padded or run eagerly). The compiled
     kernel keeps that to float rounding only: the rows after its last full vector (8 floats with AVX2, 16 with
     AVX-512) run in a second copy of its loop that rounds differently in places, so a caller that needs a row's bits
-    independent of the batch pads it to whole vectors, as the evaluation does. Its arguments
+    independent of the batch pads it to whole vectors (:func:`padded_rows`), as the evaluation does. Its arguments
     keep their dtype, device and strides from call to call (a call that breaks the compilation's guards raises,
     and :class:`EagerFallback` then runs ``fn`` eagerly), and its first argument (or its first element) is a
     tensor. It is compiled ahead of its first call (``torch.compile(...).aot_compile``) with the rows as a dynamic

@@ -19,6 +19,7 @@ from agrl.config.records import saved_agent_config, saved_guidance_parameters
 from agrl.config.task import TaskConfig, require_max_decisions
 from agrl.core.aircraft import AIRCRAFT_FIELDS, MANEUVER_NAMES
 from agrl.core.autopilot import HeldTargets, apply_target_action
+from agrl.core.compiled import padded_rows
 from agrl.core.destinations import redraw_irregular_motion
 from agrl.core.initial_states import sample_initial_aircraft
 from agrl.core.observation import observation_function, observation_size, target_observation_function
@@ -49,11 +50,6 @@ SCENARIO_KEYS = ("aircraft_state", "destination_state", "destination_speed", "de
 HELD_TARGETS_KEY = "held_targets"
 #: Where the held targets' fields are in ``aircraft_state`` (an episode starts holding what the aircraft flies).
 _HELD_FIELDS = [AIRCRAFT_FIELDS.index(name) for name in ("heading", "z", "speed")]
-#: Rows a partial reset builds at a time (:meth:`GuidanceEnv.fresh_rows`): a multiple of twice the widest CPU
-#: vector (16 floats). ATen runs the rows of a batch after its last such pair of vectors through a scalar loop,
-#: which rounds sines, arctangents and tanh differently, so rows built in whole blocks observe bit for bit what
-#: they would in a whole batch of a multiple of this size.
-ROW_BLOCK = 64
 
 
 class GuidanceEnv(EnvBase):
@@ -289,8 +285,8 @@ class GuidanceEnv(EnvBase):
 
         The gymnasium vector env restarts only its finished rows with ``fresh_rows(finished)``; the collector's
         partial reset (:meth:`maybe_reset`) draws a whole batch, so that the random stream does not depend on how
-        many rows ended, and builds the ``rows`` it needs. It builds them in blocks of :data:`ROW_BLOCK` rows, so
-        that their observations are bit for bit those of the whole batch.
+        many rows ended, and builds the ``rows`` it needs. It builds them padded to whole vectors
+        (:func:`agrl.core.compiled.padded_rows`), so that their observations are bit for bit those of the whole batch.
         """
         destination_state = self._destination_start.expand(count, 4).clone()
         destination_speed, destination_turn_rate = self.params.destination.initial_motion(
@@ -301,7 +297,7 @@ class GuidanceEnv(EnvBase):
         )
         if rows is None:
             return self.start_rows(aircraft_state, destination_state, destination_speed, destination_turn_rate)
-        padded = torch.cat((rows, rows[:1].expand((-rows.numel()) % ROW_BLOCK)))
+        padded = padded_rows(rows)
         return self.start_rows(aircraft_state[padded], destination_state[padded], destination_speed[padded],
                                destination_turn_rate[padded])[:rows.numel()]
 

@@ -21,6 +21,7 @@ import torch
 from tensordict import TensorDictBase
 from torchrl.envs import ExplorationType, set_exploration_type
 
+from agrl.core.compiled import WHOLE_VECTOR_ROWS, padded_rows
 from agrl.core.termination import Outcome
 from agrl.envs.guidance import GuidanceEnv
 from agrl.rl.models import CategoricalSampler, logits_network
@@ -41,11 +42,6 @@ class EpisodeRecords:
     trajectory_destination: torch.Tensor | None = None
 
 
-#: Rows :func:`run_episodes` steps at once are padded to a multiple of this: the compiled simulator's kernel computes
-#: the rows after its last full vector (8 or 16 floats) in a second copy of its loop, which the C++ compiler rounds
-#: differently in places, so a row's result would depend on how many rows are still flying.
-ROW_MULTIPLE = 16
-
 #: What :func:`run_episodes` keeps of each row at the end of its episode; the env counts decisions, instructions and
 #: return.
 _FINAL_KEYS = ("aircraft_state", "destination_state", "outcome", "step_count", "instruction_count", "episode_return")
@@ -58,12 +54,12 @@ def run_episodes(
     """Run one episode per env row with the actor's deterministic (argmax) action (a categorical actor of
     :func:`~agrl.rl.models.make_actor` steps as its :class:`~agrl.rl.models.CategoricalSampler`: the same actions).
 
-    Each decision steps only the rows still flying (:meth:`GuidanceEnv.transition`, padded to
-    :data:`ROW_MULTIPLE` rows), so an evaluation costs its episodes' decisions rather than its longest episode's
-    times its rows; the irregular destination's redraws still come from the env's generator for every row, as the
-    env's own step draws them. The episodes are those of ``env.step`` on the whole batch, bit for bit where that
-    batch fills whole vectors of the compiled kernel (see :data:`ROW_MULTIPLE`). ``trajectories``: how many
-    episodes (the first rows) also keep their path, state by state (what a trajectory figure draws; every path of
+    Each decision steps only the rows still flying (:meth:`GuidanceEnv.transition`, padded to whole vectors by
+    :func:`agrl.core.compiled.padded_rows`), so an evaluation costs its episodes' decisions rather than its longest
+    episode's times its rows; the irregular destination's redraws still come from the env's generator for every
+    row, as the env's own step draws them. The episodes are those of ``env.step`` on the whole batch, bit for bit
+    where that batch fills whole vectors. ``trajectories``: how many episodes (the first rows) also keep their path,
+    state by state (what a trajectory figure draws; every path of
     a large evaluation would cost hundreds of megabytes).
     """
     if trajectories < 0:
@@ -114,13 +110,12 @@ def run_episodes(
 
 def _aligned_transition(env: GuidanceEnv, state: TensorDictBase, speed: torch.Tensor,
                         turn_rate: torch.Tensor) -> TensorDictBase:
-    """``env.transition`` of ``state``'s rows, run on a multiple of :data:`ROW_MULTIPLE` rows (copies of the first
-    row fill the batch up) so that each row is computed as in any other batch."""
+    """``env.transition`` of ``state``'s rows, run on whole vectors (:func:`agrl.core.compiled.padded_rows`: copies
+    of the first row fill the batch up) so that each row is computed as in any other batch."""
     rows = state.shape[0]
-    missing = -rows % ROW_MULTIPLE
-    if not missing:
+    if not rows % WHOLE_VECTOR_ROWS:
         return env.transition(state, speed, turn_rate)
-    index = torch.cat((torch.arange(rows, device=speed.device), speed.new_zeros(missing, dtype=torch.long)))
+    index = padded_rows(torch.arange(rows, device=speed.device))
     return env.transition(state[index], speed[index], turn_rate[index])[:rows]
 
 

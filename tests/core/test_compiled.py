@@ -17,10 +17,12 @@ from agrl.core.compiled import (
     INDUCTOR_CACHE_VARIABLE,
     KEPT_COMPILATIONS,
     VECTOR_PROBE_RECORD,
+    WHOLE_VECTOR_ROWS,
     CachedRowwiseCompile,
     EagerFallback,
     compile_cache_dir,
     keep_kernels_per_instruction_set,
+    padded_rows,
 )
 
 
@@ -387,3 +389,12 @@ def test_a_probe_that_fails_is_left_to_torch(tmp_path, monkeypatch):
         assert inductor_config.cpp.vec_isa_ok is None and not (tmp_path / VECTOR_PROBE_RECORD).exists()
     finally:
         inductor_config.cpp.vec_isa_ok = saved
+
+
+@pytest.mark.parametrize("count", [0, 1, 5, 63, 64, 65, 1000])
+def test_padded_rows_fills_whole_vectors_with_the_first_row(count):
+    index = torch.arange(count) * 3 + 2  # any rows of a batch, not starting at 0
+    padded = padded_rows(index)
+    assert padded.numel() % WHOLE_VECTOR_ROWS == 0 and padded.numel() - count < WHOLE_VECTOR_ROWS
+    assert torch.equal(padded[:count], index)
+    assert bool((padded[count:] == 2).all())  # copies of the first row

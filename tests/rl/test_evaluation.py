@@ -218,7 +218,7 @@ def test_run_episodes_flies_any_policy_module_as_it_flies_the_actor(params, acto
 @pytest.mark.slow  # the training's compiled simulator: half a minute to compile on a cold cache
 def test_run_episodes_flies_the_episodes_of_the_env_step_with_the_compiled_simulator():
     """With the compiled simulator a row's result depends on its place in the batch unless the batch is a whole
-    number of vectors (run_episodes pads it to a multiple of ROW_MULTIPLE): the shipped agent's 1008 episodes, whose
+    number of vectors (run_episodes pads it, agrl.core.compiled.padded_rows): the shipped agent's 1008 episodes, whose
     rows leave one by one, against TorchRL's step of the whole batch of 1008 (a multiple of 16 rows)."""
     from agrl.rl.models import load_agent
 
