@@ -94,7 +94,6 @@ def main(argv: Sequence[str] | None = None) -> int:
                                 text=True).stdout.strip()
         caches = (folder / "compiled", folder / "torchinductor")
         environment = {**os.environ, "AGRL_COMPILE_CACHE": str(caches[0]), "TORCHINDUCTOR_CACHE_DIR": str(caches[1])}
-        environment.pop("VIRTUAL_ENV", None)
         empty(caches)
         seconds, _ = timed(["make", "install"], clone, environment)
         emit({"name": "make_install_wall_seconds", "value": round(seconds, 2), "unit": "s", "commit": commit})

@@ -32,6 +32,8 @@ def test_worker_batches_have_the_single_collectors_specs_and_the_current_weights
         first = next(batches)
         # TorchRL's MultiSyncCollector always numbers episodes; the single collector only for a method reading them.
         assert batch_specs(first.exclude(("collector", "traj_ids"))) == expected
+        # 32 envs in two workers of 16: every env's episode has its own id (what policy reuse reads).
+        assert first["collector", "traj_ids"][:, 0].unique().numel() == 32
         # The actor changes (as after a PPO update): the next batch's actions were drawn by the changed actor, whose
         # log-probabilities of them the batch records.
         with torch.no_grad():
