@@ -262,3 +262,31 @@ def test_ppo_update_returns_each_logged_term_averaged_over_its_minibatches():
         values = [terms[key] for terms in recording.terms]
         assert losses[key] == sum(values) / len(values), key
     assert len({terms["loss_objective"] for terms in recording.terms}) > 1  # a mean of different minibatches
+
+
+def test_advantage_runs_the_critic_once_to_the_values_of_two_passes():
+    """make_advantage's single critic pass (TorchRL's ``shifted=True``) gives the advantages and value targets of
+    TorchRL's default two passes, on a batch whose episodes end inside it (at the decision budget or before)."""
+    from torchrl.objectives.value import GAE
+
+    from agrl.config import guidance_parameters
+    from agrl.envs import GuidanceEnv
+    from agrl.rl.models import make_critic
+    from agrl.rl.ppo import make_advantage
+
+    torch.manual_seed(0)
+    params = guidance_parameters("simulation.max_decisions=5")
+    env = GuidanceEnv(params, num_envs=16, seed=0)
+    batch = env.rollout(12, break_when_any_done=False)  # random maneuvers: episodes end at 5 decisions or before
+    assert batch.names[-1] == "time" and batch["next", "done"].sum() >= 16
+    critic = make_critic([32, 32], "tanh")
+    with torch.no_grad():
+        one_pass = make_advantage(0.99, 0.95, critic, torch.device("cpu"))(batch.clone())
+        two_passes = GAE(gamma=0.99, lmbda=0.95, value_network=critic, average_gae=False)(batch.clone())
+    for key in ("advantage", "value_target", "state_value"):
+        torch.testing.assert_close(one_pass[key], two_passes[key], rtol=0, atol=1e-6)
+    # The value after an episode's end is not computed once (every end terminates: GAE does not bootstrap it).
+    assert bool(batch["next", "terminated"].eq(batch["next", "done"]).all())
+    going_on = ~batch["next", "done"]
+    torch.testing.assert_close(one_pass["next", "state_value"][going_on], two_passes["next", "state_value"][going_on],
+                               rtol=0, atol=1e-6)
