@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import torch
-from tensordict import TensorDictBase
+from tensordict import TensorDict, TensorDictBase
 from tensordict.nn import InteractionType, TensorDictModule, TensorDictModuleBase
 from tensordict.nn.probabilistic import interaction_type
 from torch import nn
@@ -58,11 +58,43 @@ def make_actor(hidden: list[int], activation: str, device: torch.device | str = 
     return _categorical_actor(network)
 
 
+class _TensorOutputs:
+    """Writes a module's output tensors into the TensorDict as they are (anything else as tensordict does).
+
+    tensordict's ``TensorDictModule`` passes each output through ``TensorDict.from_any``, which returns a tensor
+    unchanged, but only after asking ``importlib`` whether pandas is installed: a search of ``sys.path`` where it is
+    not, twice a PPO minibatch (actor and critic). A duplicate of ``_write_to_tensordict`` for plain tensors, the
+    price of a shorter eager update (``benchmarks.bench_peer``'s agrl line: docs/benchmarks.md, "Module outputs").
+    """
+
+    def _write_to_tensordict(self, tensordict, tensors, tensordict_out=None, out_keys=None):
+        out_keys = self.out_keys_source if out_keys is None else out_keys
+        if len(tensors) != len(out_keys) or not all(type(tensor) is torch.Tensor for tensor in tensors):
+            return super()._write_to_tensordict(tensordict, tensors, tensordict_out, out_keys)
+        if tensordict_out is None:
+            if self.inplace is True:
+                tensordict_out = tensordict
+            else:
+                tensordict_out = tensordict.empty() if self.inplace == "empty" else TensorDict()
+        for key, tensor in zip(out_keys, tensors, strict=True):
+            if key != "_":
+                tensordict_out.set(key, tensor)
+        return tensordict_out
+
+
+class LogitsModule(_TensorOutputs, TensorDictModule):
+    """A categorical actor's ``observation -> logits`` step: a ``TensorDictModule`` writing its output directly."""
+
+
+class Critic(_TensorOutputs, ValueOperator):
+    """The critic: a ``ValueOperator`` writing its ``state_value`` directly."""
+
+
 def _categorical_actor(logits: nn.Module) -> ProbabilisticActor:
     """``observation -> logits`` (``logits`` a network), then a ``Categorical``: the form :func:`logits_network`
     recognises."""
     return ProbabilisticActor(
-        TensorDictModule(logits, in_keys=["observation"], out_keys=["logits"]),
+        LogitsModule(logits, in_keys=["observation"], out_keys=["logits"]),
         in_keys=["logits"],
         out_keys=["action"],
         distribution_class=torch.distributions.Categorical,
@@ -76,7 +108,7 @@ def make_critic(hidden: list[int], activation: str, device: torch.device | str =
         in_features=observation_size(observation, holds_targets), out_features=1, num_cells=list(hidden),
         activation_class=ACTIVATIONS[activation], device=device,
     )
-    return ValueOperator(network, in_keys=["observation"])
+    return Critic(network, in_keys=["observation"])
 
 
 def network_signature(module: nn.Module) -> dict[str, list[int]]:

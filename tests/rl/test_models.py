@@ -105,3 +105,40 @@ def test_the_sampler_shares_the_actors_parameters_once():
 def test_the_sampler_refuses_what_is_not_an_actor_of_make_actor():
     with pytest.raises(ValueError, match="make_actor"):
         CategoricalSampler(make_critic([16], "tanh"))
+
+
+@pytest.mark.parametrize("inplace", [True, False, "empty"])
+def test_actor_and_critic_write_what_tensordicts_modules_write(inplace):
+    """The actor's logits step and the critic write their outputs directly (agrl.rl.models._TensorOutputs): the same
+    TensorDict as tensordict's own modules, in place or not."""
+    from tensordict.nn import TensorDictModule
+    from torchrl.modules import ValueOperator
+
+    from agrl.rl.models import Critic, LogitsModule
+
+    torch.manual_seed(0)
+    network, value_network = make_actor([16], "tanh").module[0].module, make_critic([16], "tanh").module
+    pairs = [(LogitsModule(network, in_keys=["observation"], out_keys=["logits"], inplace=inplace),
+              TensorDictModule(network, in_keys=["observation"], out_keys=["logits"], inplace=inplace))]
+    if inplace is True:  # a ValueOperator always writes in place
+        pairs.append((Critic(value_network, in_keys=["observation"]),
+                      ValueOperator(value_network, in_keys=["observation"])))
+    for ours, theirs in pairs:
+        written, expected = ours(_observations(8)), theirs(_observations(8))
+        assert set(written.keys(True)) == set(expected.keys(True)) and written.batch_size == expected.batch_size
+        for key in expected.keys(True, True):
+            assert torch.equal(written[key], expected[key]), key
+
+
+def test_actor_and_critic_outputs_skip_tensordicts_conversion(monkeypatch):
+    """Their output tensors are not passed through ``TensorDict.from_any`` (which searches ``sys.path`` for pandas
+    before returning a tensor as it is)."""
+    def refuse(cls, obj, **kwargs):
+        raise AssertionError(f"TensorDict.from_any called on {type(obj).__name__}")
+
+    actor, critic = make_actor([16], "tanh"), make_critic([16], "tanh")
+    monkeypatch.setattr(TensorDict, "from_any", classmethod(refuse))
+    observations = _observations(8)
+    actor(observations)
+    critic(observations)
+    assert {"logits", "action", "action_log_prob", "state_value"} <= set(observations.keys())
