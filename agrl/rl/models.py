@@ -64,7 +64,8 @@ class _TensorOutputs:
     tensordict's ``TensorDictModule`` passes each output through ``TensorDict.from_any``, which returns a tensor
     unchanged, but only after asking ``importlib`` whether pandas is installed: a search of ``sys.path`` where it is
     not, twice a PPO minibatch (actor and critic). A duplicate of ``_write_to_tensordict`` for plain tensors, the
-    price of a shorter eager update (``benchmarks.bench_peer``'s agrl line: docs/benchmarks.md, "Module outputs").
+    price of an eager update about 7 % shorter at the defaults' shape (``benchmarks.bench_peer``, paired with
+    tensordict's path: docs/benchmarks.md, "Module outputs").
     """
 
     def _write_to_tensordict(self, tensordict, tensors, tensordict_out=None, out_keys=None):
@@ -103,7 +104,7 @@ def _categorical_actor(logits: nn.Module) -> ProbabilisticActor:
 
 
 def make_critic(hidden: list[int], activation: str, device: torch.device | str = "cpu",
-                observation: str = "relative", holds_targets: bool = False) -> ValueOperator:
+                observation: str = "relative", holds_targets: bool = False) -> Critic:
     network = MLP(
         in_features=observation_size(observation, holds_targets), out_features=1, num_cells=list(hidden),
         activation_class=ACTIVATIONS[activation], device=device,

@@ -26,10 +26,11 @@ def make_advantage(gamma: float, gae_lambda: float, critic, device: torch.device
     """GAE with the critic as value network (``critic=None``: values are supplied with the data).
 
     The critic runs once over a batch's observations and the one after its last (TorchRL's ``shifted=True``),
-    instead of over every observation and again over every successor: the same advantages and value targets in
-    about a third of the time at the defaults' 512 x 64 (``tests/rl/test_ppo.py`` checks them against the two
-    passes). The value after an episode's end is not the critic's then, but GAE does not read it: every end of
-    agrl's env terminates. The batch's last dimension must be its time.
+    instead of over every observation and again over every successor: the same advantages and value targets (to
+    float rounding: the matrix products have other shapes) in about 0.4 x the time at the defaults' 512 x 64
+    (``benchmarks.profile_iteration``; ``tests/rl/test_ppo.py`` checks them against the two passes). The value after
+    an episode's end is not the critic's then, but GAE does not read it: every end of agrl's env terminates. The
+    batch's last dimension must be its time.
     """
     return GAE(gamma=gamma, lmbda=gae_lambda, value_network=critic, average_gae=False, device=device, shifted=True)
 
