@@ -34,7 +34,7 @@ install: $(STAMP)
 compile: install
 	$(compile_train)
 
-# The main job on its defaults: the shipped baseline (docs/results/baseline.md), about 1.5 minutes on 2 cores. One run
+# The main job on its defaults: the shipped baseline (docs/results/baseline.md), under a minute on 2 cores. One run
 # (+experiment=switch_schedule): PPO from scratch at a switch cost of 0.104 until a periodic evaluation, confirmed on
 # 1000 other episodes, reaches 99.8 %, then 60 iterations at 0.449 in the same run. ARGS: extra Hydra overrides
 # (e.g. ARGS='seed=1'). Other tasks and methods: python -m agrl.train task=uniform speed=50 method=reuse (README).

@@ -37,6 +37,7 @@ from pathlib import Path
 import torch
 
 from agrl.cli import positive_int
+from agrl.rl.checkpoint import load_checkpoint
 from benchmarks.bench import emit, machine_record
 
 REPOSITORY = Path(__file__).resolve().parents[1]
@@ -47,7 +48,7 @@ ARMS = ("install", "empty", "warm")
 
 def same_agent(first: Path, second: Path) -> bool:
     """Whether two agent files (checkpoints or shipped agents) hold the same actor and critic, tensor by tensor."""
-    a, b = (torch.load(path, map_location="cpu", weights_only=True) for path in (first, second))
+    a, b = (load_checkpoint(path, required=("actor", "critic")) for path in (first, second))
     return all(a[part].keys() == b[part].keys() and all(torch.equal(a[part][name], b[part][name]) for name in a[part])
                for part in ("actor", "critic"))
 
