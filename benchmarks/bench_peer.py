@@ -12,8 +12,9 @@ ratio is the median over rounds of the two trainers' ratio in that round. Prints
 line per trainer (with each round's seconds) and a ``ratio`` line (agrl's decisions/s over stable-baselines3's;
 ``update_ratio`` and ``collection_ratio`` per part).
 
-``--trainers ... agrl-compiled`` adds agrl with ``ppo.compile_loss=true`` (the loss's forward and backward
-compiled, :class:`agrl.rl.ppo.CompiledLoss`), and its ratio.
+``agrl`` is agrl's trainer with the eager loss (``ppo.compile_loss=false``, the default until 2026-12-07);
+``--trainers ... agrl-compiled`` adds agrl with ``ppo.compile_loss=true``, ``python -m agrl.train``'s default now
+(the loss's forward and backward compiled, :class:`agrl.rl.ppo.CompiledLoss`), and its ratio.
 
 ``--trainers ... floor`` adds a line: the simulator, networks and PPO update with nothing around them
 (:func:`bench_floor`), plain PyTorch with no TensorDict, no loss module, no collector, and none of the work of
@@ -446,9 +447,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="fuse the simulation step with torch.compile in both (default on, as training)")
     parser.add_argument("--threads", type=int, default=None, help="torch threads for both (default torch's)")
     parser.add_argument("--trainers", nargs="+", choices=tuple(TRAINERS), default=["agrl", "stable-baselines3"],
-                        help="which trainers to time (default agrl and stable-baselines3; agrl-compiled: agrl with "
-                             "ppo.compile_loss=true; floor: the arithmetic in plain PyTorch without rewards, resets "
-                             "or GAE, a lower bound; floor-equal-work: with them)")
+                        help="which trainers to time (default agrl and stable-baselines3; agrl: with the eager loss; "
+                             "agrl-compiled: with the compiled loss, agrl's default; floor: the arithmetic in plain "
+                             "PyTorch without rewards, resets or GAE, a lower bound; floor-equal-work: with them)")
     parser.add_argument("--task", default="fixed")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE",

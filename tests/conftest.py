@@ -53,6 +53,7 @@ TINY_OVERRIDES = {
     "eval.periodic_episodes": "8",
     "eval.episodes": "16",
     "simulation.compile": "false",
+    "ppo.compile_loss": "false",  # a tiny run is shorter than the loss's compilation; tests/rl/test_ppo.py compiles it
     "simulation.integration_step": "0.3",
     "simulation.max_decisions": "30",
     "checkpoint_interval": "1",

@@ -118,11 +118,11 @@ def test_switch_finetune_needs_the_stage_one_agent_named():
 
 def test_fast_experiment_changes_only_the_measured_settings():
     """``+experiment=fast`` trains the fixed baseline's task and reward (with both shaping terms, as it was measured)
-    with a narrower network, a larger learning rate, the compiled loss and a cheaper, stricter stop; everything else
+    with a narrower network, a larger learning rate and a cheaper, stricter stop; everything else
     stays the defaults."""
     fast, default = dict(_leaves(load("+experiment=fast"))), dict(_leaves(load()))
     changed = {key for key, value in fast.items() if default[key] != value}
-    assert changed == {"agent.actor_hidden", "agent.critic_hidden", "ppo.learning_rate", "ppo.compile_loss",
+    assert changed == {"agent.actor_hidden", "agent.critic_hidden", "ppo.learning_rate",
                        "target_success", "eval.interval", "eval.periodic_episodes", "eval.trajectory_image",
                        "eval.min_train_success", "reward.use_continuous_action"}
     assert fast["reward.use_continuous_action"] and not default["reward.use_continuous_action"]
@@ -136,7 +136,7 @@ def test_switch_schedule_experiment_fine_tunes_after_its_target_at_a_larger_cost
     schedule, default = dict(_leaves(load("+experiment=switch_schedule"))), dict(_leaves(load()))
     changed = {key for key, value in schedule.items() if default[key] != value}
     assert changed == {"agent.actor_hidden", "agent.critic_hidden", "ppo.learning_rate", "ppo.minibatch_size",
-                       "ppo.num_envs", "ppo.steps_per_env", "ppo.compile_loss",
+                       "ppo.num_envs", "ppo.steps_per_env",
                        "reward.switch_cost", "target_success", "finetune.iterations", "finetune.switch_cost",
                        "finetune.learning_rate",
                        "eval.interval", "eval.min_train_success", "eval.trajectory_image", "threads"}

@@ -74,9 +74,9 @@ SHIPPED_AGENTS: dict[str, ShippedAgent] = {agent.name: agent for agent in (
     ),
     ShippedAgent(
         "baseline-stage1", "fixed_baseline_stage1.pt",
-        "make train-two-stage's stage 1 alone (python -m agrl.train's defaults, seed 0): about 10 instructions "
-        "per episode; Table 3's fine-tuned row (make experiments-table3) starts from it",
-        ("python -m agrl.train seed=0",
+        "make train-two-stage's stage 1 alone (python -m agrl.train's defaults with the eager loss, seed 0): about 10 "
+        "instructions per episode; Table 3's fine-tuned row (make experiments-table3) starts from it",
+        ("python -m agrl.train seed=0 ppo.compile_loss=false",
          "python -m agrl.export <run>/checkpoints/latest.pt fixed_baseline_stage1.pt "
          "--evaluation <run>/eval/eval.json"),
     ),
@@ -84,7 +84,8 @@ SHIPPED_AGENTS: dict[str, ShippedAgent] = {agent.name: agent for agent in (
         "baseline-both-terms", "fixed_baseline_both_terms.pt",
         "one stage with both of the paper's shaping terms (position and continuous action) and a switch cost of "
         "0.1, the shipped baseline before make train had two stages; baseline-absolute is distilled from it",
-        ("python -m agrl.train reward.use_continuous_action=true ppo.total_frames=4000000 ppo.max_minutes=0 seed=0",
+        ("python -m agrl.train reward.use_continuous_action=true ppo.total_frames=4000000 ppo.max_minutes=0 seed=0 "
+         "ppo.compile_loss=false",
          "python -m agrl.export <run>/checkpoints/latest.pt fixed_baseline_both_terms.pt "
          "--evaluation <run>/eval/eval.json"),
     ),

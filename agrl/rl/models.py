@@ -63,9 +63,10 @@ class _TensorOutputs:
 
     tensordict's ``TensorDictModule`` passes each output through ``TensorDict.from_any``, which returns a tensor
     unchanged, but only after asking ``importlib`` whether pandas is installed: a search of ``sys.path`` where it is
-    not, twice a PPO minibatch (actor and critic). A duplicate of ``_write_to_tensordict`` for plain tensors, the
-    price of an eager update about 7 % shorter at the defaults' shape (``benchmarks.bench_peer``, paired with
-    tensordict's path: docs/benchmarks.md, "Module outputs").
+    not, twice a PPO minibatch (actor and critic) of the eager loss (``ppo.compile_loss=false``, or where compiling
+    fails; a compiled loss skips the question). A duplicate of ``_write_to_tensordict`` for plain tensors, the price
+    of an eager update about 7 % shorter at the defaults' shape (``benchmarks.bench_peer``, paired with tensordict's
+    path: docs/benchmarks.md, "Module outputs").
     """
 
     def _write_to_tensordict(self, tensordict, tensors, tensordict_out=None, out_keys=None):

@@ -46,11 +46,13 @@ def make_loss(actor, critic, clip_epsilon: float, entropy_coeff: float, critic_c
 class CompiledLoss(torch.nn.Module):
     """``loss`` with its forward and backward fused by ``torch.compile`` (``ppo.compile_loss``).
 
-    The same function as ``loss`` (to float rounding; ``tests/rl/test_ppo.py``). A minibatch of 512 rows is a
+    The same function as ``loss`` (to float rounding; ``tests/rl/test_ppo.py``), though not the same run: compiled,
+    TorchRL's loss also draws a Monte-Carlo entropy estimate (used only where the analytic entropy is not finite),
+    which advances torch's generator, so the minibatch orders differ from an eager run's. A minibatch of 512 rows is a
     few dozen small kernels and TensorDict bookkeeping in eager mode; compiled, the update is shorter in
     ``python -m benchmarks.bench_peer``, for a compilation on the first minibatch (kept between runs by torch's
     compile cache, one folder per instruction set: :func:`agrl.core.compiled.keep_kernels_per_instruction_set`).
-    ``make train``'s recipe uses it; the defaults do not (their results were measured eagerly).
+    The default (``ppo.compile_loss=true``); the results pages' older runs used ``loss`` itself.
     If compilation fails (no C++ compiler, an unsupported platform) it warns once and stays eager.
     """
 
