@@ -136,7 +136,7 @@ def test_switch_schedule_experiment_fine_tunes_after_its_target_at_a_larger_cost
     schedule, default = dict(_leaves(load("+experiment=switch_schedule"))), dict(_leaves(load()))
     changed = {key for key, value in schedule.items() if default[key] != value}
     assert changed == {"agent.actor_hidden", "agent.critic_hidden", "ppo.learning_rate", "ppo.minibatch_size",
-                       "ppo.num_envs", "ppo.steps_per_env",
+                       "ppo.num_envs", "ppo.steps_per_env", "ppo.compiled_entropy_draw",
                        "reward.switch_cost", "target_success", "finetune.iterations", "finetune.switch_cost",
                        "finetune.learning_rate",
                        "eval.interval", "eval.min_train_success", "eval.trajectory_image", "threads"}

@@ -3,8 +3,10 @@ keys) are read with today's names: :func:`agrl.config.upgraded_config`, wherever
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 
+import pytest
 import torch
 from omegaconf import OmegaConf
 
@@ -56,6 +58,20 @@ def test_an_upgrade_moves_every_renamed_key_and_nothing_else():
     assert old != today and set(old["reward"]) > {"c1", "c8"}
     assert upgraded_config(old) == today
     assert upgraded_config(today) == today  # today's keys: unchanged
+
+
+@pytest.mark.parametrize("compile_loss", [True, False])
+def test_a_config_saved_before_the_entropy_draw_option_gets_what_its_loss_did(compile_loss):
+    """TorchRL's compiled loss drew a Monte-Carlo entropy estimate before ``ppo.compiled_entropy_draw`` existed: a
+    compiled run resumed from then goes on drawing it (an eager loss never draws, whatever the option)."""
+    today = _today(f"ppo.compile_loss={str(compile_loss).lower()}")
+    assert today["ppo"]["compiled_entropy_draw"] is False  # the default
+    old = copy.deepcopy(today)
+    del old["ppo"]["compiled_entropy_draw"]
+    assert upgraded_config(old)["ppo"]["compiled_entropy_draw"] is compile_loss
+    assert upgraded_config(today) == today  # saved with the option: kept as it is
+    drawing = _today("ppo.compiled_entropy_draw=true")
+    assert upgraded_config(drawing) == drawing
 
 
 def test_an_old_checkpoint_reads_as_today_s_and_gives_the_same_records(tmp_path):

@@ -49,9 +49,14 @@ RENAMED_KEYS = {
 
 def upgraded_config(saved: Mapping) -> dict:
     """A saved config (a checkpoint's ``config``, a run's ``.hydra/config.yaml`` as a dict) with today's keys: each
-    key of :data:`RENAMED_KEYS` it holds moves, value unchanged, to its new place. A config with today's keys comes
-    back equal (a copy); the input is not changed. Everything that reads a saved config calls this first."""
+    key of :data:`RENAMED_KEYS` it holds moves, value unchanged, to its new place, and a config saved before
+    ``ppo.compiled_entropy_draw`` existed gets what its loss did then (TorchRL's draw wherever the loss was compiled),
+    so that a resumed run goes on as it would have. A config with today's keys comes back equal (a copy); the input
+    is not changed. Everything that reads a saved config calls this first."""
     config = copy.deepcopy(dict(saved))
+    ppo = config.get("ppo")
+    if isinstance(ppo, dict) and "compile_loss" in ppo:
+        ppo.setdefault("compiled_entropy_draw", bool(ppo["compile_loss"]))
     for old, new in RENAMED_KEYS.items():
         *path, leaf = old.split(".")
         section: Any = config

@@ -58,6 +58,7 @@ class PPOConfig:
     max_grad_norm: float = MISSING
     anneal_lr: bool = MISSING
     compile_loss: bool = MISSING  # torch.compile the loss's forward and backward (agrl.rl.ppo.CompiledLoss)
+    compiled_entropy_draw: bool = MISSING  # TorchRL's unused Monte-Carlo entropy draw in the compiled loss
     target_kl: float = MISSING  # stop an update once a minibatch's approximate KL exceeds 1.5 x this; 0 = never
     collector_workers: int = MISSING  # 1 = one Collector in this process; N > 1 = MultiSyncCollector
 

@@ -35,10 +35,33 @@ def make_advantage(gamma: float, gae_lambda: float, critic, device: torch.device
     return GAE(gamma=gamma, lmbda=gae_lambda, value_network=critic, average_gae=False, device=device, shifted=True)
 
 
-def make_loss(actor, critic, clip_epsilon: float, entropy_coeff: float, critic_coeff: float) -> ClipPPOLoss:
+class AnalyticEntropyPPOLoss(ClipPPOLoss):
+    """TorchRL's ``ClipPPOLoss`` whose entropy bonus is the categorical's analytic entropy, compiled or not.
+
+    Under ``torch.compile`` TorchRL cannot test the analytic entropy for finiteness without a graph break, so it also
+    draws a Monte-Carlo estimate every minibatch (one sampled action per row) and keeps it where the analytic one is
+    not finite. A categorical's entropy is finite wherever its logits are (torch clamps them), so the draw only costs
+    time and moves torch's generator: about 5 % of a compiled iteration at the defaults' 512 x 64 (0.90 against
+    0.85 x the plain-PyTorch floor's speed in ``benchmarks.bench_peer``: docs/benchmarks.md, "The compiled loss's
+    entropy"). Eagerly both compute the same entropy. A duplicate of TorchRL's ``_get_entropy`` for
+    ``torch.distributions.Categorical``; other distributions go to TorchRL's.
+    """
+
+    def _get_entropy(self, dist, adv_shape):
+        if type(dist) is torch.distributions.Categorical:
+            return dist.entropy().unsqueeze(-1)
+        return super()._get_entropy(dist, adv_shape)
+
+
+def make_loss(actor, critic, clip_epsilon: float, entropy_coeff: float, critic_coeff: float,
+              compiled_entropy_draw: bool = False) -> ClipPPOLoss:
+    """The PPO loss; ``compiled_entropy_draw``: TorchRL's own, whose compiled form draws a Monte-Carlo entropy
+    estimate it does not use (``ppo.compiled_entropy_draw``: runs compiled before the draw was dropped repeat with
+    it), else :class:`AnalyticEntropyPPOLoss`."""
     # functional=False: the loss calls the actor and critic as they are. Functionalised parameters (the default)
     # are for meta-RL and cost a parameter swap on every minibatch, a noticeable share of an update here.
-    return ClipPPOLoss(actor, critic, clip_epsilon=clip_epsilon, entropy_coeff=entropy_coeff,
+    loss_class = ClipPPOLoss if compiled_entropy_draw else AnalyticEntropyPPOLoss
+    return loss_class(actor, critic, clip_epsilon=clip_epsilon, entropy_coeff=entropy_coeff,
                        critic_coeff=critic_coeff, normalize_advantage=True, loss_critic_type="smooth_l1",
                        functional=False)
 
@@ -46,9 +69,7 @@ def make_loss(actor, critic, clip_epsilon: float, entropy_coeff: float, critic_c
 class CompiledLoss(torch.nn.Module):
     """``loss`` with its forward and backward fused by ``torch.compile`` (``ppo.compile_loss``).
 
-    The same function as ``loss`` (to float rounding; ``tests/rl/test_ppo.py``), though not the same run: compiled,
-    TorchRL's loss also draws a Monte-Carlo entropy estimate (used only where the analytic entropy is not finite),
-    which advances torch's generator, so the minibatch orders differ from an eager run's. A minibatch of 512 rows is a
+    The same function as ``loss`` (to float rounding; ``tests/rl/test_ppo.py``). A minibatch of 512 rows is a
     few dozen small kernels and TensorDict bookkeeping in eager mode; compiled, the update is shorter in
     ``python -m benchmarks.bench_peer``, for a compilation on the first minibatch (kept between runs by torch's
     compile cache, one folder per instruction set: :func:`agrl.core.compiled.keep_kernels_per_instruction_set`).

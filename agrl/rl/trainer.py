@@ -147,10 +147,10 @@ class Trainer:
     def _make_ppo(self) -> None:
         ppo, gamma = self.cfg.ppo, self.cfg.reward.gamma
         self.advantage = make_advantage(gamma, ppo.gae_lambda, self.critic, self.device)
-        self.loss = make_loss(self.actor, self.critic, ppo.clip_epsilon, ppo.entropy_coeff, ppo.critic_coeff)
+        self.loss = make_loss(self.actor, self.critic, ppo.clip_epsilon, ppo.entropy_coeff, ppo.critic_coeff,
+                              ppo.compiled_entropy_draw)
         self.optimizer = make_optimizer(self.loss, ppo.learning_rate)
-        # What the update calls: the loss itself, or the same loss compiled (ppo.compile_loss).
-        self.update_loss = CompiledLoss(self.loss) if ppo.compile_loss else self.loss
+        self.update_loss = CompiledLoss(self.loss) if ppo.compile_loss else self.loss  # what the update calls
 
     def _make_buffer(self) -> TensorDictReplayBuffer:
         """The rows of one update, through the method's transform (policy reuse rewrites and adds rows there); the

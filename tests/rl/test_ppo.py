@@ -31,7 +31,7 @@ def test_trainer_applies_the_schedule_each_iteration(tmp_path, compose_train, ti
     assert trainer.optimizer.param_groups[0]["lr"] == pytest.approx(1.5e-4 if anneal else 3e-4)
 
 
-def _loss_and_batch(rows: int = 512):
+def _loss_and_batch(rows: int = 512, compiled_entropy_draw: bool = False):
     """A fresh loss over 2 x 128 networks and one minibatch with the fields the update reads."""
     from tensordict import TensorDict
 
@@ -51,7 +51,8 @@ def _loss_and_batch(rows: int = 512):
     with torch.no_grad():
         for parameter in actor.parameters():
             parameter.add_(0.05 * torch.randn_like(parameter))
-    return make_loss(actor, critic, clip_epsilon=0.2, entropy_coeff=0.01, critic_coeff=0.5), batch
+    return make_loss(actor, critic, clip_epsilon=0.2, entropy_coeff=0.01, critic_coeff=0.5,
+                     compiled_entropy_draw=compiled_entropy_draw), batch
 
 
 def _terms_and_gradients(loss_module, loss_parameters, batch):
@@ -73,6 +74,34 @@ def test_compiled_loss_computes_the_eager_loss_and_gradients():
         torch.testing.assert_close(compiled_terms[key], value, rtol=1e-4, atol=1e-6, msg=key)
     for eager, fused in zip(eager_gradients, compiled_gradients, strict=True):
         torch.testing.assert_close(fused, eager, rtol=1e-4, atol=1e-6)
+
+
+def test_the_analytic_entropy_loss_is_torchrls_loss_when_eager():
+    """``ppo.compiled_entropy_draw=false`` changes nothing in an eager update: the same terms and gradients, bit for
+    bit, as TorchRL's ``ClipPPOLoss``, whose eager entropy is the analytic one too."""
+    analytic, batch = _loss_and_batch()
+    torchrls, _ = _loss_and_batch(compiled_entropy_draw=True)
+    assert type(analytic) is not type(torchrls)
+    analytic_terms, analytic_gradients = _terms_and_gradients(analytic, list(analytic.parameters()), batch)
+    torchrl_terms, torchrl_gradients = _terms_and_gradients(torchrls, list(torchrls.parameters()), batch)
+    assert analytic_terms.keys() == torchrl_terms.keys() and "entropy" in analytic_terms
+    for key, value in analytic_terms.items():
+        assert torch.equal(value, torchrl_terms[key]), key
+    for analytic_gradient, torchrl_gradient in zip(analytic_gradients, torchrl_gradients, strict=True):
+        assert torch.equal(analytic_gradient, torchrl_gradient)
+
+
+@pytest.mark.parametrize("compiled_entropy_draw", [False, True])
+def test_the_compiled_loss_draws_from_torchs_generator_only_with_the_entropy_draw(compiled_entropy_draw):
+    """TorchRL's compiled loss samples a Monte-Carlo entropy estimate every call, moving the default generator (so
+    the update's minibatch orders); without the draw a compiled call leaves the generator where it was."""
+    loss, batch = _loss_and_batch(compiled_entropy_draw=compiled_entropy_draw)
+    compiled = CompiledLoss(loss)
+    compiled(batch)  # compiles
+    assert compiled.compiled
+    before = torch.get_rng_state()
+    compiled(batch)
+    assert torch.equal(torch.get_rng_state(), before) is not compiled_entropy_draw
 
 
 def test_compiled_loss_falls_back_to_the_eager_loss_when_compilation_fails(monkeypatch):
