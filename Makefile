@@ -14,7 +14,7 @@ ARGS ?=
 # failed (agrl then runs eagerly) prints its warning. About 70 s on 2 cores the first time, 15 s once kept.
 # `make compile` runs it again (after upgrading torch, or if torch's cache in /tmp was cleared).
 define compile_train
-	@echo "compiling the simulator and loss of make train and of the defaults ahead of their runs (about 70 s the first time)"
+	@echo "compiling the simulator and loss of make train and of the defaults ahead (about 70 s the first time)"
 	@folder=$$(mktemp -d) && \
 	  if $(SHIPPED_CPU_PATH) $(PY) -m agrl.train +experiment=switch_schedule ppo.total_frames=1 eval.episodes=32 \
 	    progress=false hydra.run.dir=$$folder/train > $$folder/compile.log 2>&1 && \
@@ -54,7 +54,8 @@ SHIPPED_CPU_PATH := $(if $(CPU_PATH),ATEN_CPU_CAPABILITY=$(CPU_PATH) MKL_ENABLE_
 
 # The shipped baseline until 2026-12-06, baseline-two-stage (Tables 4-5's B; docs/results/baseline.md): two stages.
 # Stage 1 trains the fixed-destination agent from scratch at a switch cost of 0.1 until a periodic evaluation reaches
-# 99.5 % (`python -m agrl.train`'s defaults, with the eager loss); stage 2 fine-tunes it at 0.3 for 80 iterations (+experiment=switch_finetune).
+# 99.5 % (`python -m agrl.train`'s defaults, with the eager loss); stage 2 fine-tunes it at 0.3 for 80 iterations
+# (+experiment=switch_finetune).
 # ARGS: extra Hydra overrides for stage 1. FINETUNE_ARGS: for stage 2; its default is that agent's own stage 2,
 # seed 1 on one torch thread (a run is bit for bit the same only at the same thread count). Its agent was trained on
 # torch's AVX-512 path, which this target leaves torch to choose (checked on an AMD EPYC with AVX-512).

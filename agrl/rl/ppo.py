@@ -62,8 +62,8 @@ def make_loss(actor, critic, clip_epsilon: float, entropy_coeff: float, critic_c
     # are for meta-RL and cost a parameter swap on every minibatch, a noticeable share of an update here.
     loss_class = ClipPPOLoss if compiled_entropy_draw else AnalyticEntropyPPOLoss
     return loss_class(actor, critic, clip_epsilon=clip_epsilon, entropy_coeff=entropy_coeff,
-                       critic_coeff=critic_coeff, normalize_advantage=True, loss_critic_type="smooth_l1",
-                       functional=False)
+                      critic_coeff=critic_coeff, normalize_advantage=True, loss_critic_type="smooth_l1",
+                      functional=False)
 
 
 class CompiledLoss(torch.nn.Module):
