@@ -3,8 +3,8 @@
 A section's keys have the names of the record's fields (``reward.success`` sets ``RewardParameters.success``,
 ``simulation.tolerance.heading_deg`` sets ``SuccessTolerance.heading_deg``), so :func:`build_record` builds any
 record from its section with no table: it walks the record's fields and takes the same-named keys. Old saved
-configs (checkpoints and run folders written before the keys took these names) are read through
-:func:`upgraded_config`, the one place that knows the old names.
+configs (checkpoints and run folders written before the keys took these names, or before an option whose default
+is not what such runs did) are read through :func:`upgraded_config`, the one place that knows old configs.
 """
 
 from __future__ import annotations

@@ -104,6 +104,20 @@ def test_the_compiled_loss_draws_from_torchs_generator_only_with_the_entropy_dra
     assert torch.equal(torch.get_rng_state(), before) is not compiled_entropy_draw
 
 
+@pytest.mark.parametrize("draw", [False, True])
+def test_the_trainer_builds_the_loss_its_config_names(tmp_path, compose_train, tiny_args, draw):
+    """``ppo.compiled_entropy_draw`` reaches the trainer's loss: TorchRL's own with the draw (``make train``'s recipe,
+    which its shipped agent needs), agrl's analytic-entropy loss without (the default)."""
+    from torchrl.objectives import ClipPPOLoss
+
+    from agrl.rl.ppo import AnalyticEntropyPPOLoss
+
+    config = compose_train(*tiny_args({"ppo.compiled_entropy_draw": str(draw).lower()}))
+    trainer = Trainer(config, tmp_path / "run")
+    assert type(trainer.loss) is (ClipPPOLoss if draw else AnalyticEntropyPPOLoss)
+    trainer.collector.shutdown()
+
+
 def test_compiled_loss_falls_back_to_the_eager_loss_when_compilation_fails(monkeypatch):
     def failing_compile(module, *args, **kwargs):
         def compiled(*call_args, **call_kwargs):
