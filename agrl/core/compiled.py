@@ -3,6 +3,7 @@ so that later processes load it instead of compiling again."""
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import os
@@ -39,12 +40,38 @@ class EagerFallback:
         try:
             return self._call(*args, **kwargs)
         except Exception as error:  # noqa: BLE001 - any compiler failure falls back to eager
-            if self._call is self.eager:
-                raise
-            warnings.warn(f"torch.compile of {self.what} failed ({type(error).__name__}: {error}); running eagerly",
-                          RuntimeWarning, stacklevel=3)
-            self._call = self.eager
+            self._fall_back(error)
             return self.eager(*args, **kwargs)
+
+    def repeat(self, times: int, *args: Any) -> Any:
+        """The function applied ``times`` times, each call's results (a tuple) replacing its leading arguments
+        (:func:`repeat`); through ``compiled``'s own ``repeat`` where it has one (:meth:`CachedRowwiseCompile.repeat`).
+        The function must not change its arguments: after a compiler failure the eager repeat starts again from
+        ``args``."""
+        if self._call is not self.eager and hasattr(self._call, "repeat"):
+            try:
+                return self._call.repeat(times, *args)
+            except Exception as error:  # noqa: BLE001 - any compiler failure falls back to eager
+                self._fall_back(error)
+        return repeat(self, times, *args)
+
+    def _fall_back(self, error: Exception) -> None:
+        if self._call is self.eager:
+            raise error
+        warnings.warn(f"torch.compile of {self.what} failed ({type(error).__name__}: {error}); running eagerly",
+                      RuntimeWarning, stacklevel=4)
+        self._call = self.eager
+
+
+def repeat(function: Callable, times: int, *args: Any) -> Any:
+    """``function`` applied ``times`` (>= 1) times, each call's results (a tuple) replacing its leading arguments:
+    ``args = (*results, *args[len(results):])``; the last call's results."""
+    if times < 1:
+        raise ValueError(f"times={times} is not allowed: an integer >= 1")
+    for _ in range(times):
+        results = function(*args)
+        args = (*results, *args[len(results):])
+    return results
 
 
 def compile_cache_dir() -> Path | None:
@@ -181,14 +208,19 @@ class CachedRowwiseCompile:
         self.key = key
         self.options = dict(options or {})
         self._compiled: dict[tuple, Callable] = {}
+        self._unguarded: dict[tuple, Callable] = {}  # per signature, once a repeat has met the guards throughout
         self.loaded_from: Path | None = None  # the file of the last compilation loaded from disk, if any
+
+    @staticmethod
+    def _signature(first: torch.Tensor) -> tuple:
+        # torch's thread count (its kernels are built for it) and grad mode are part of what a compilation guards.
+        return first.dtype, first.device, torch.get_num_threads(), torch.is_grad_enabled()
 
     def __call__(self, *args: Any) -> Any:
         first = _first_tensor(args)
         if torch.is_inference_mode_enabled() or first.is_inference():
             return self._outside_inference_mode(args)
-        # torch's thread count (its kernels are built for it) and grad mode are part of what a compilation guards.
-        signature = (first.dtype, first.device, torch.get_num_threads(), torch.is_grad_enabled())
+        signature = self._signature(first)
         compiled = self._compiled.get(signature)
         rows = first.shape[0]
         if compiled is not None and rows > 1:
@@ -201,6 +233,33 @@ class CachedRowwiseCompile:
         compiled, result = self._load_or_compile(signature, args)
         self._compiled[signature] = compiled
         return result
+
+    def repeat(self, times: int, *args: Any) -> Any:
+        """:func:`repeat`: ``fn`` applied ``times`` times, each call's results replacing its leading arguments, with
+        torch's guard check (about 8 us a call) on the first call only, once such a repeat has met the guards on
+        every call.
+
+        The results of a compiled call are new tensors with the rows, dtypes, device and (contiguous) strides its
+        compilation makes; where they are those of the arguments they replace, the next call meets the guards the
+        first one met, since nothing else changes between the calls. The first repeat of each compilation checks
+        every call (a result that breaks the guards raises, as any call that breaks them), then trusts the rest."""
+        if times < 1:
+            return repeat(self, times, *args)  # its one-line error
+        results = self(*args)
+        args = (*results, *args[len(results):])
+        if times == 1:
+            return results
+        first = _first_tensor(args)
+        fast = first.shape[0] > 1 and not (torch.is_inference_mode_enabled() or first.is_inference())
+        signature = self._signature(first) if fast else None
+        unguarded = self._unguarded.get(signature) if fast else None
+        results = repeat(unguarded or self, times - 1, *args)
+        checked = self._compiled.get(signature) if fast and unguarded is None else None
+        if hasattr(checked, "disable_guard_check"):  # every call met the guards (torch's AOT-compiled function)
+            unguarded = copy.copy(checked)
+            unguarded.disable_guard_check()
+            self._unguarded[signature] = unguarded
+        return results
 
     def _outside_inference_mode(self, args: tuple) -> Any:
         """A call under ``torch.inference_mode`` (a user's evaluation), or on tensors made there: the compilation's

@@ -77,13 +77,13 @@ _INDUCTOR_OPTIONS = {"cpp.min_chunk_size": 1, "max_fusion_size": 100_000}
 def _substep(
     aircraft: AircraftState,
     destination: DestinationState,
+    active: torch.Tensor,
+    outcome: torch.Tensor,
     destination_speed: torch.Tensor,
     destination_turn_rate: torch.Tensor,
     axial_excess: torch.Tensor,
     normal_load: torch.Tensor,
     turn_direction: torch.Tensor,
-    active: torch.Tensor,
-    outcome: torch.Tensor,
     params: SimulationParameters,
 ):
     """One integration step under one maneuver's control law."""
@@ -125,23 +125,25 @@ def _advance(
 
 
 def _substeps(*args):
-    """``count`` integration steps in a row (``args`` = :func:`_substep`'s, then ``count``); fused when compiled."""
+    """``count`` integration steps in a row (``args`` = :func:`_substep`'s, then ``count``); fused when compiled.
+    The results are the new values of the first four arguments (a decision repeats the call on them)."""
     *state, params, count = args
-    aircraft, destination, speed, turn_rate, axial_excess, normal_load, turn_direction, active, outcome = state
+    aircraft, destination, active, outcome, speed, turn_rate, axial_excess, normal_load, turn_direction = state
     for _ in range(count):
         aircraft, destination, active, outcome = _substep(
-            aircraft, destination, speed, turn_rate, axial_excess, normal_load, turn_direction, active, outcome,
+            aircraft, destination, active, outcome, speed, turn_rate, axial_excess, normal_load, turn_direction,
             params,
         )
     return aircraft, destination, active, outcome
 
 
 def _target_substeps(*args):
-    """``count`` integration steps with the autopilot flying held targets (``args``: aircraft, destination, its
-    speed and turn rate, the target heading, altitude and speed, active, outcome, then the simulation's and the
-    autopilot's parameters and ``count``); fused when compiled."""
+    """``count`` integration steps with the autopilot flying held targets (``args``: aircraft, destination, active,
+    outcome, the destination's speed and turn rate, the target heading, altitude and speed, then the simulation's
+    and the autopilot's parameters and ``count``); fused when compiled. The results are the new values of the first
+    four arguments."""
     *state, params, autopilot, count = args
-    aircraft, destination, speed, turn_rate, heading, altitude, target_speed, active, outcome = state
+    aircraft, destination, active, outcome, speed, turn_rate, heading, altitude, target_speed = state
     targets = HeldTargets(heading, altitude, target_speed)
     for _ in range(count):
         loads = autopilot_loads(aircraft, targets, params.limits, autopilot, params.gravity)
@@ -237,11 +239,12 @@ class DecisionSimulator:
         if active is None:
             active = torch.ones(shape, dtype=torch.bool, device=device)
         outcome = torch.full(shape, int(Outcome.RUNNING), dtype=torch.int64, device=device)
-        for _ in range(self.substeps // self.substeps_per_call):
-            aircraft, destination, active, outcome = run(
-                aircraft, destination, destination_speed, destination_turn_rate, *controls, active, outcome,
-                *constants,
-            )
+        # One call's results are the next call's leading arguments: run.repeat checks torch's guards on the first
+        # call of the decision only (agrl.core.compiled.CachedRowwiseCompile.repeat).
+        aircraft, destination, active, outcome = run.repeat(
+            self.substeps // self.substeps_per_call, aircraft, destination, active, outcome, destination_speed,
+            destination_turn_rate, *controls, *constants,
+        )
         aircraft = aircraft._replace(heading=wrap_angle(aircraft.heading))
         destination = destination._replace(heading=wrap_angle(destination.heading))
         return DecisionResult(aircraft.to_tensor(), destination.to_tensor(), outcome)

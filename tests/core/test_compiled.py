@@ -23,6 +23,7 @@ from agrl.core.compiled import (
     compile_cache_dir,
     keep_kernels_per_instruction_set,
     padded_rows,
+    repeat,
 )
 
 
@@ -212,6 +213,69 @@ def test_inference_mode_uses_the_no_grad_compilation(cache):
             _assert_matches_eager(again, 8)
     assert again.loaded_from is not None
     assert len(list(cache.glob("*.bin"))) == 1
+
+
+# ---------------------------------------------------------------- a call repeated on its own results
+def _moved(position, speed, step):
+    """A row-wise step whose results replace its leading argument (the simulator's kind)."""
+    return (position + torch.sin(position) * speed * step,)
+
+
+def _widened(position, speed, step):
+    """A row-wise step whose second result is not of the dtype of the argument it replaces: it breaks the guards."""
+    return position + speed * step, speed.double()
+
+
+def test_repeat_feeds_each_calls_results_back_as_its_leading_arguments():
+    (position,) = repeat(lambda position, step: (position + step,), 3, torch.zeros(2), 0.5)
+    assert position.tolist() == [1.5, 1.5]
+    with pytest.raises(ValueError, match="^times=0 is not allowed: an integer >= 1$"):
+        repeat(_moved, 0, *_rows(4), 0.5)
+
+
+def test_a_compiled_repeat_checks_the_guards_on_its_first_call_once_its_results_met_them(cache, monkeypatch):
+    """The first repeat of a compilation checks every call; later ones the first call only, with the same results
+    as calls checked one by one."""
+    from torch._dynamo.aot_compile import AOTCompiledFunction
+
+    checks = []
+    check = AOTCompiledFunction.guard_check
+
+    def counted(self, *args, **kwargs):
+        checks.append(1)
+        return check(self, *args, **kwargs)
+
+    monkeypatch.setattr(AOTCompiledFunction, "guard_check", counted)  # torch's check, counted
+    function = CachedRowwiseCompile(_moved, "the test function", key="repeat")
+    position, speed = _rows(64)
+    (first,) = function.repeat(5, position, speed, 0.5)
+    assert len(checks) == 5
+    (again,) = function.repeat(5, position, speed, 0.5)
+    assert len(checks) == 6
+    (one_by_one,) = repeat(function, 5, position, speed, 0.5)
+    assert torch.equal(first, one_by_one) and torch.equal(again, one_by_one)
+    torch.testing.assert_close(first, repeat(_moved, 5, position, speed, 0.5)[0])
+
+
+def test_a_repeat_whose_results_break_the_guards_falls_back_to_eager(cache):
+    function = EagerFallback(CachedRowwiseCompile(_widened, "the widening", key="widened"), _widened, "the widening")
+    position, speed = _rows(64)
+    with pytest.warns(RuntimeWarning, match="torch.compile of the widening failed.*GuardManager check failed"):
+        result = function.repeat(3, position, speed, 0.5)
+    assert not function.compiled
+    for tensor, expected in zip(result, repeat(_widened, 3, position, speed, 0.5), strict=True):
+        assert torch.equal(tensor, expected)
+
+
+def test_a_repeat_whose_compiler_fails_warns_once_and_repeats_eagerly():
+    def compiled(*args):
+        raise RuntimeError("no C++ compiler")
+
+    function = EagerFallback(compiled, _moved, "the step")
+    position, speed = _rows(8)
+    with pytest.warns(RuntimeWarning, match="torch.compile of the step failed.*no C\\+\\+ compiler"):
+        (result,) = function.repeat(3, position, speed, 0.5)
+    assert torch.equal(result, repeat(_moved, 3, position, speed, 0.5)[0])
 
 
 # ---------------------------------------------------------------- torch's own cache, one folder per instruction set
