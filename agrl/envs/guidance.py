@@ -27,6 +27,7 @@ from agrl.core.parameters import GuidanceParameters, MotionKind
 from agrl.core.reward import REWARD_PART_KEYS, step_reward
 from agrl.core.simulation import DecisionResult, DecisionSimulator
 from agrl.core.termination import Outcome, decision_outcome
+from agrl.envs.partial_reset import ZERO_AT_START, put_rows
 
 #: The paper's maneuvers (``actions=maneuvers``); an env's own count: ``GuidanceEnv.num_actions``.
 NUM_ACTIONS = len(MANEUVER_NAMES)
@@ -260,12 +261,13 @@ class GuidanceEnv(EnvBase):
         ``EnvBase.maybe_reset``'s fields and values from the same draws (tested, for batches of a multiple of 64).
 
         TorchRL's path builds a whole batch of new rows (:meth:`_reset`) and merges the done ones field by field
-        with tensordict's ``where``. This one draws the whole batch (the random stream stays the same), builds only
-        the done rows (:meth:`fresh_rows` with ``rows``) and writes them into each field out of place; a field the
-        new rows lack (a policy's output, the collector's episode ids) is zeroed in them, as TorchRL pads it
-        (unless every row is done: TorchRL then keeps it, and so does this). A collector's batch in 0.94 x the
-        time at ``make train``'s 2048 rows, 0.98 x at the defaults' 512 (``python -m benchmarks.bench_reset``). A
-        reset restoring saved rows (:meth:`restore_on_next_reset`) takes TorchRL's path.
+        with tensordict's ``where``. This one draws the whole batch (the random stream stays the same), builds the
+        done rows' fields that do not start at zero (:meth:`start_fields`, padded to whole vectors as in
+        :meth:`fresh_rows`) and writes them into each field out of place, zeroing the rest there: every other field
+        of a new episode starts at zero (:meth:`start_rows`), and a field new rows lack (a policy's output, the
+        collector's episode ids) is zeroed in them, as TorchRL pads it (unless every row is done: TorchRL then
+        keeps it, and so does this). A reset restoring saved rows (:meth:`restore_on_next_reset`) takes TorchRL's
+        path.
         """
         if self._pending_state is not None:
             return super().maybe_reset(tensordict)
@@ -276,18 +278,18 @@ class GuidanceEnv(EnvBase):
         rows = done.reshape(-1).nonzero().squeeze(-1)
         if rows.numel() == count:  # TorchRL's whole reset: the new rows' fields replace those they have
             return tensordict.update(self.fresh_rows(count))
-        _put_rows(tensordict, self.fresh_rows(count, rows), rows)
+        present = tensordict.keys()
+        if not all(key in present for key in ZERO_AT_START):  # a start field to add (zero in the other rows)
+            put_rows(tensordict, self.fresh_rows(count, rows), rows)
+            return tensordict
+        padded = padded_rows(rows)
+        starts = self.start_fields(*(field[padded] for field in self.draw_starts(count)))
+        put_rows(tensordict, starts[:rows.numel()], rows)
         return tensordict
 
-    def fresh_rows(self, count: int, rows: torch.Tensor | None = None) -> TensorDictBase:
-        """``count`` new episodes drawn from the env's generator (flat batch ``[count]``), as a reset returns them;
-        with ``rows`` (indices into them, ascending) those rows only, drawn as part of the ``count``.
-
-        The gymnasium vector env restarts only its finished rows with ``fresh_rows(finished)``; the collector's
-        partial reset (:meth:`maybe_reset`) draws a whole batch, so that the random stream does not depend on how
-        many rows ended, and builds the ``rows`` it needs. It builds them padded to whole vectors
-        (:func:`agrl.core.compiled.padded_rows`), so that their observations are bit for bit those of the whole batch.
-        """
+    def draw_starts(self, count: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """``count`` new episodes' initial conditions from the env's generator: aircraft state ``(count, 7)``,
+        destination state ``(count, 4)``, destination speed and turn rate ``(count,)``."""
         destination_state = self._destination_start.expand(count, 4).clone()
         destination_speed, destination_turn_rate = self.params.destination.initial_motion(
             count, self._generator, self.device
@@ -295,41 +297,57 @@ class GuidanceEnv(EnvBase):
         aircraft_state = sample_initial_aircraft(
             count, self.params.initial_state, destination_state, self._generator, self.device
         )
-        if rows is None:
-            return self.start_rows(aircraft_state, destination_state, destination_speed, destination_turn_rate)
-        padded = padded_rows(rows)
-        return self.start_rows(aircraft_state[padded], destination_state[padded], destination_speed[padded],
-                               destination_turn_rate[padded])[:rows.numel()]
+        return aircraft_state, destination_state, destination_speed, destination_turn_rate
 
-    def start_rows(
+    def fresh_rows(self, count: int, rows: torch.Tensor | None = None) -> TensorDictBase:
+        """``count`` new episodes drawn from the env's generator (:meth:`draw_starts`; flat batch ``[count]``), as
+        a reset returns them; with ``rows`` (indices into them, ascending) those rows only, drawn as part of the
+        ``count``.
+
+        The gymnasium vector env restarts only its finished rows with ``fresh_rows(finished)``. With ``rows`` the
+        rows are built padded to whole vectors (:func:`agrl.core.compiled.padded_rows`), so that their
+        observations are bit for bit those of the whole batch.
+        """
+        starts = self.draw_starts(count)
+        if rows is None:
+            return self.start_rows(*starts)
+        padded = padded_rows(rows)
+        return self.start_rows(*(field[padded] for field in starts))[:rows.numel()]
+
+    def start_fields(
         self, aircraft_state: torch.Tensor, destination_state: torch.Tensor, destination_speed: torch.Tensor,
         destination_turn_rate: torch.Tensor,
     ) -> TensorDictBase:
-        """Rows at the start of an episode from these initial conditions (flat batch), observation included."""
+        """The fields of rows at the start of an episode from these initial conditions (flat batch) that need not
+        be zero: the initial conditions, the held targets of an agent holding them, and the observation. Every
+        other field of :meth:`start_rows` is zero (:data:`ZERO_AT_START`)."""
         count = aircraft_state.shape[0]
-        steady = torch.zeros(count, dtype=torch.int64, device=self.device)
         state = TensorDict(
             {
                 "aircraft_state": aircraft_state,
                 "destination_state": destination_state,
                 "destination_speed": destination_speed,
                 "destination_turn_rate": destination_turn_rate,
-                "last_action": steady,
-                "action_before_last": steady.clone(),
-                "step_count": torch.zeros(count, dtype=torch.int64, device=self.device),
-                "episode_return": torch.zeros(count, device=self.device),
-                "instruction_count": torch.zeros(count, dtype=torch.int64, device=self.device),
-                "outcome": torch.full((count,), int(Outcome.RUNNING), dtype=torch.int64, device=self.device),
-                "done": torch.zeros(count, 1, dtype=torch.bool, device=self.device),
-                "terminated": torch.zeros(count, 1, dtype=torch.bool, device=self.device),
-                **{key: torch.zeros(count, device=self.device) for key in REWARD_PART_KEYS},
             },
             batch_size=[count],
             device=self.device,
         )
         if self.holds_targets:  # hold what the aircraft flies until the first instruction
             state[HELD_TARGETS_KEY] = aircraft_state[..., _HELD_FIELDS].clone()
-        state["observation"] = self.observe(state)
+        memory = {} if self.holds_targets else {"last_action": torch.zeros(count, dtype=torch.int64,
+                                                                           device=self.device)}
+        state["observation"] = self.observe({**state, **memory})
+        return state
+
+    def start_rows(
+        self, aircraft_state: torch.Tensor, destination_state: torch.Tensor, destination_speed: torch.Tensor,
+        destination_turn_rate: torch.Tensor,
+    ) -> TensorDictBase:
+        """Rows at the start of an episode from these initial conditions (flat batch): :meth:`start_fields`, every
+        other field zero (:data:`ZERO_AT_START`)."""
+        state = self.start_fields(aircraft_state, destination_state, destination_speed, destination_turn_rate)
+        for key, (dtype, *shape) in ZERO_AT_START.items():
+            state[key] = torch.zeros(aircraft_state.shape[0], *shape, dtype=dtype, device=self.device)
         return state
 
     def _step(self, tensordict: TensorDictBase) -> TensorDictBase:
@@ -418,28 +436,3 @@ class GuidanceEnv(EnvBase):
         next_state["instruction_count"] = state["instruction_count"] + instruction.long()
         next_state["observation"] = self.observe(next_state)
         return next_state
-
-
-def _put_rows(state: TensorDictBase, new: TensorDictBase | None, rows: torch.Tensor) -> None:
-    """Every field of ``state`` with its ``rows`` (indices) replaced by ``new``'s fields, each a new tensor (the
-    old ones may be a step's stored ``next`` entries): a field ``new`` (or ``new is None``) lacks is zeroed in
-    those rows, a field only ``new`` has is added, zero in the other rows (TorchRL's padding in a partial reset)."""
-    index = (rows,)
-    for key, value in list(state.items()):
-        other = None if new is None else new._get_str(key, None)
-        if isinstance(value, TensorDictBase):
-            _put_rows(value, other, rows)
-            continue
-        if other is None:
-            other = torch.zeros((), dtype=value.dtype, device=value.device)
-        state._set_str(key, value.index_put(index, other), inplace=False, validated=True, non_blocking=False)
-    for key in () if new is None else new.keys():
-        if key in state.keys():
-            continue
-        value = new._get_str(key, None)
-        if isinstance(value, TensorDictBase):
-            nested = TensorDict({}, batch_size=state.batch_size, device=state.device)
-            _put_rows(nested, value, rows)
-            state.set(key, nested)
-            continue
-        state.set(key, value.new_zeros((*state.batch_size, *value.shape[1:])).index_put(index, value))

@@ -17,7 +17,6 @@ next batch's new episodes start in the new box, as they do in one process.
 from __future__ import annotations
 
 import torch
-from tensordict import TensorDictBase
 
 from agrl.core.initial_states import InitialStateDistribution, scale_distribution
 from agrl.core.parameters import GuidanceParameters
@@ -62,6 +61,6 @@ class SharedScaleGuidanceEnv(GuidanceEnv):
             self.set_initial_state_distribution(start_distribution(self._full_box_params, scale))
             self._applied_scale = scale
 
-    def fresh_rows(self, count: int, rows: torch.Tensor | None = None) -> TensorDictBase:
+    def draw_starts(self, count: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         self._follow_scale()
-        return super().fresh_rows(count, rows)
+        return super().draw_starts(count)

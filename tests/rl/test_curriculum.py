@@ -49,3 +49,15 @@ def test_an_env_on_a_shared_scale_starts_its_next_episodes_in_the_new_box(paper_
     scale.fill_(1.0)
     env.reset()
     assert env.params == paper_parameters
+
+
+def test_a_collectors_partial_reset_follows_the_shared_scale_too(paper_parameters):
+    scale = shared_scale(0.15)
+    env = SharedScaleGuidanceEnv(paper_parameters, scale, num_envs=64, seed=0)
+    state = env.step_mdp(env.rand_step(env.reset()))
+    scale.fill_(0.65)
+    state["done"][:8] = True  # some rows end, not all
+    starts = env.maybe_reset(state)["aircraft_state"][:8]
+    box = start_distribution(paper_parameters, 0.65)
+    assert env.params.initial_state == box
+    assert bool(((starts[:, 0] >= box.x_range[0] - 0.01) & (starts[:, 0] <= box.x_range[1] + 0.01)).all())
