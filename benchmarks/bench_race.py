@@ -134,7 +134,8 @@ class RaceEvaluation:
                   "final_success_rate": final["success_rate"],
                   "best_success_rate": max(r["success_rate"] for r in rows),
                   "training_seconds": final["training_seconds"], "decisions": final["decisions"],
-                  "decisions_per_second": round(final["decisions"] / max(final["training_seconds"], 1e-9), 1),
+                  # Four significant figures: a tiny race's few decisions a second keep their precision too.
+                  "decisions_per_second": float(f'{final["decisions"] / max(final["training_seconds"], 1e-9):.4g}'),
                   "evaluations": len(rows)}
         for target in self.targets:
             first = next((r for r in rows if r["success_rate"] >= target), None)
