@@ -66,12 +66,16 @@ class EagerFallback:
 def repeat(function: Callable, times: int, *args: Any) -> Any:
     """``function`` applied ``times`` (>= 1) times, each call's results (a tuple) replacing its leading arguments:
     ``args = (*results, *args[len(results):])``; the last call's results."""
-    if times < 1:
-        raise ValueError(f"times={times} is not allowed: an integer >= 1")
+    _check_times(times)
     for _ in range(times):
         results = function(*args)
         args = (*results, *args[len(results):])
     return results
+
+
+def _check_times(times: int) -> None:
+    if times < 1:
+        raise ValueError(f"times={times} is not allowed: an integer >= 1")
 
 
 def compile_cache_dir() -> Path | None:
@@ -236,29 +240,28 @@ class CachedRowwiseCompile:
 
     def repeat(self, times: int, *args: Any) -> Any:
         """:func:`repeat`: ``fn`` applied ``times`` times, each call's results replacing its leading arguments, with
-        torch's guard check (about 8 us a call) on the first call only, once such a repeat has met the guards on
-        every call.
+        torch's guard check on the first call only, once such a repeat has met the guards on every call.
 
         The results of a compiled call are new tensors with the rows, dtypes, device and (contiguous) strides its
         compilation makes; where they are those of the arguments they replace, the next call meets the guards the
         first one met, since nothing else changes between the calls. The first repeat of each compilation checks
         every call (a result that breaks the guards raises, as any call that breaks them), then trusts the rest."""
-        if times < 1:
-            return repeat(self, times, *args)  # its one-line error
-        results = self(*args)
-        args = (*results, *args[len(results):])
-        if times == 1:
-            return results
+        _check_times(times)
         first = _first_tensor(args)
         fast = first.shape[0] > 1 and not (torch.is_inference_mode_enabled() or first.is_inference())
         signature = self._signature(first) if fast else None
-        unguarded = self._unguarded.get(signature) if fast else None
-        results = repeat(unguarded or self, times - 1, *args)
-        checked = self._compiled.get(signature) if fast and unguarded is None else None
-        if hasattr(checked, "disable_guard_check"):  # every call met the guards (torch's AOT-compiled function)
-            unguarded = copy.copy(checked)
-            unguarded.disable_guard_check()
-            self._unguarded[signature] = unguarded
+        unguarded = self._unguarded.get(signature)
+        if unguarded is None:  # every call checked (and compiled, or loaded, on the first if need be)
+            results = repeat(self, times, *args)
+            checked = self._compiled.get(signature) if times > 1 else None  # results fed back met the guards
+            if hasattr(checked, "disable_guard_check"):  # torch's AOT-compiled function: trust the next repeats
+                unguarded = copy.copy(checked)
+                unguarded.disable_guard_check()
+                self._unguarded[signature] = unguarded
+            return results
+        results = self._compiled[signature](*args)  # the first call, checked
+        if times > 1:
+            results = repeat(unguarded, times - 1, *results, *args[len(results):])
         return results
 
     def _outside_inference_mode(self, args: tuple) -> Any:

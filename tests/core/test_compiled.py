@@ -273,8 +273,9 @@ def test_a_repeat_whose_compiler_fails_warns_once_and_repeats_eagerly():
 
     function = EagerFallback(compiled, _moved, "the step")
     position, speed = _rows(8)
-    with pytest.warns(RuntimeWarning, match="torch.compile of the step failed.*no C\\+\\+ compiler"):
+    with pytest.warns(RuntimeWarning, match="torch.compile of the step failed.*no C\\+\\+ compiler") as caught:
         (result,) = function.repeat(3, position, speed, 0.5)
+    assert len(caught) == 1 and not function.compiled
     assert torch.equal(result, repeat(_moved, 3, position, speed, 0.5)[0])
 
 
