@@ -66,7 +66,7 @@ class _TensorOutputs:
     not, twice a PPO minibatch (actor and critic) of the eager loss (``ppo.compile_loss=false``, or where compiling
     fails; a compiled loss skips the question). A duplicate of ``_write_to_tensordict`` for plain tensors, the price
     of an eager update about 7 % shorter at the defaults' shape (``benchmarks.bench_peer``, paired with tensordict's
-    path: docs/benchmarks.md, "Module outputs").
+    path: docs/benchmarks.md, "What each design choice buys").
     """
 
     def _write_to_tensordict(self, tensordict, tensors, tensordict_out=None, out_keys=None):

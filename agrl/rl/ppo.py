@@ -42,8 +42,8 @@ class AnalyticEntropyPPOLoss(ClipPPOLoss):
     draws a Monte-Carlo estimate every minibatch (one sampled action per row) and keeps it where the analytic one is
     not finite. A categorical's entropy is finite wherever its logits are (torch clamps them), so the draw only costs
     time and moves torch's generator: about 5 % of a compiled iteration at the defaults' 512 x 64 (0.90 against
-    0.85 x the plain-PyTorch floor's speed in ``benchmarks.bench_peer``: docs/benchmarks.md, "The compiled loss's
-    entropy"). Eagerly both compute the same entropy. A duplicate of TorchRL's ``_get_entropy`` for
+    0.85 x the plain-PyTorch floor's speed in ``benchmarks.bench_peer``: docs/benchmarks.md, "What each design
+    choice buys"). Eagerly both compute the same entropy. A duplicate of TorchRL's ``_get_entropy`` for
     ``torch.distributions.Categorical``; other distributions go to TorchRL's.
     """
 
