@@ -7,7 +7,7 @@ import itertools
 import pytest
 import torch
 
-from agrl.rl.ppo import LOGGED_LOSS_TERMS, CompiledLoss, annealed_learning_rate, total_loss
+from agrl.rl.ppo import LOGGED_LOSS_TERMS, CompiledLoss, annealed_learning_rate, logged_terms, total_loss
 from agrl.rl.trainer import Trainer
 
 pytestmark = pytest.mark.usefixtures("torch_one_thread")
@@ -74,6 +74,27 @@ def test_compiled_loss_computes_the_eager_loss_and_gradients():
         torch.testing.assert_close(compiled_terms[key], value, rtol=1e-4, atol=1e-6, msg=key)
     for eager, fused in zip(eager_gradients, compiled_gradients, strict=True):
         torch.testing.assert_close(fused, eager, rtol=1e-4, atol=1e-6)
+
+
+def test_the_compiled_total_and_logged_terms_are_those_taken_after_the_loss_compiled_alone():
+    """:class:`CompiledLoss` fuses the total and the logged terms' stack into the loss's graph; the update took them
+    of the compiled loss's outputs before. The same terms, total, logged values and gradients, bit for bit (so the
+    same training), whether the sum runs inside the graph or after it."""
+    loss, batch = _loss_and_batch()
+    parameters = list(loss.parameters())
+    alone = torch.compile(loss)(batch)
+    after_total = total_loss(alone)
+    after_terms = torch.stack([alone[key].detach().float().mean() for key in logged_terms(alone)]).double()
+    after_gradients = torch.autograd.grad(after_total, parameters)
+    compiled = CompiledLoss(loss)
+    losses, total, terms = compiled.scored(batch)
+    assert compiled.compiled
+    assert logged_terms(losses) == logged_terms(alone) and "explained_variance" in logged_terms(losses)
+    for key in logged_terms(losses):
+        assert torch.equal(losses[key], alone[key]), key
+    assert torch.equal(total, after_total) and torch.equal(terms, after_terms)
+    for fused, after in zip(torch.autograd.grad(total, parameters), after_gradients, strict=True):
+        assert torch.equal(fused, after)
 
 
 def test_the_analytic_entropy_loss_is_torchrls_loss_when_eager():
@@ -154,7 +175,8 @@ def test_trainer_updates_through_the_compiled_loss(tmp_path, compose_train, tiny
     before = [parameter.detach().clone() for parameter in trainer.actor.parameters()]
     trainer.train()
     assert isinstance(trainer.update_loss, CompiledLoss) and trainer.update_loss.compiled
-    assert compiled_modules == [trainer.update_loss.loss]
+    (compiled_module,) = compiled_modules  # the loss with its total and logged terms (ScoredLoss)
+    assert compiled_module.loss is trainer.update_loss.loss
     assert len(calls) == 4  # one iteration of 512 rows: 4 minibatches of 128, one epoch
     assert any(not torch.equal(old, new) for old, new in zip(before, trainer.actor.parameters(), strict=True))
 
