@@ -123,9 +123,9 @@ def scored(loss: torch.nn.Module, batch: TensorDictBase) -> tuple[TensorDictBase
     """``loss``'s terms on ``batch``, their :func:`total_loss`, and its :func:`logged_terms` detached and stacked as
     float64 (TorchRL's terms are float32 scalars, taken as they are; another shape is averaged first).
 
-    One function, so that :class:`CompiledLoss` fuses the sum and the stack into the loss's graph: done eagerly after
-    it, their dozen small operations cost about 3 % of a compiled minibatch's update at the defaults' 512 rows. The
-    same numbers either way: a sum and a stack round alike in both (``tests/rl/test_ppo.py``)."""
+    One function, so that :class:`CompiledLoss` fuses the sum and the stack into the loss's graph instead of running
+    them as a dozen small eager operations after it, every minibatch (docs/benchmarks.md, "What each design choice
+    buys"). The same numbers either way: a sum and a stack round alike in both (``tests/rl/test_ppo.py``)."""
     losses = loss(batch)
     terms = [losses[key].detach() for key in logged_terms(losses)]
     terms = torch.stack([term if term.dim() == 0 and term.dtype == torch.float32 else term.float().mean()

@@ -77,9 +77,9 @@ def test_compiled_loss_computes_the_eager_loss_and_gradients():
 
 
 def test_the_compiled_total_and_logged_terms_are_those_taken_after_the_loss_compiled_alone():
-    """:class:`CompiledLoss` fuses the total and the logged terms' stack into the loss's graph; the update took them
-    of the compiled loss's outputs before. The same terms, total, logged values and gradients, bit for bit (so the
-    same training), whether the sum runs inside the graph or after it."""
+    """:class:`CompiledLoss` fuses the total and the logged terms' stack into the loss's graph: the same terms, total,
+    logged values and gradients, bit for bit, as the sum and stack taken after the loss compiled alone, so fusing them
+    changes no number of a run."""
     loss, batch = _loss_and_batch()
     parameters = list(loss.parameters())
     alone = torch.compile(loss)(batch)
