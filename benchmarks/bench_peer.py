@@ -18,13 +18,14 @@ line per trainer (with each round's seconds) and a ``ratio`` line (agrl's decisi
 
 ``--trainers ... floor`` adds a line: the simulator, networks and PPO update with nothing around them
 (:func:`bench_floor`), plain PyTorch with no TensorDict, no loss module, no collector, and none of the work of
-rewards, episode ends, resets and GAE: a bound no trainer reaches. With it, each agrl trainer also gets the two
-lines of the project's speed targets (docs/benchmarks.md), which were stated against this floor:
+rewards, episode ends, resets and GAE, its update eager (a trainer compiling its update can pass that part). With
+it, each agrl trainer also gets the two lines of the project's speed targets (docs/benchmarks.md), which were stated
+against this floor:
 ``ratio_agrl_over_floor`` (its decisions/s over the floor's; the target is 0.9 or more) and
 ``collection_time_agrl_over_floor`` (its collection's seconds over the floor's; the target is 1.3 or less),
 ``agrl_compiled`` in both names for the compiled loss. ``floor-equal-work`` adds the same floor doing that
 work too, plainly (rewards by the env's own function, fresh starts for the rows that ended only, GAE on one
-critic pass): what a trainer of equal work could reach, and the same two lines against it
+critic pass): what a trainer of equal work costs done plainly, and the same two lines against it
 (``..._over_floor_equal_work``). A ``ratio_floor_over_sb3`` line says how far ahead of stable-baselines3 the
 bare arithmetic is.
 
@@ -247,7 +248,8 @@ def plain_decision_end(params, decisions, aircraft, destination, last_action, ac
 
 def bench_floor(num_envs: int, steps: int, minibatch: int, compile: bool, seed: int, task: dict,
                 settings: Sequence[str] = (), equal_work: bool = False) -> Iterations:
-    """The iteration's arithmetic alone, in plain PyTorch: a lower bound for any trainer of the same work.
+    """The iteration's arithmetic alone, in plain eager PyTorch: the bound of a trainer of the same work and no compiled
+    update.
 
     Collection: per decision, the observation (:func:`agrl.core.observation.policy_observation`), the actor's
     network, a categorical sample and the simulator (:class:`agrl.core.simulation.DecisionSimulator`, compiled
@@ -258,7 +260,7 @@ def bench_floor(num_envs: int, steps: int, minibatch: int, compile: bool, seed: 
 
     ``equal_work=False`` (``--trainers floor``, the floor the speed targets were stated against): no rewards,
     episode ends or resets, and random advantages (no GAE, whose critic pass over the batch is about a tenth of
-    agrl's update at ``make train``'s shape): less work than a trainer does, so a bound it cannot reach.
+    agrl's update at ``make train``'s shape): less work than a trainer does.
     ``equal_work=True`` (``--trainers floor-equal-work``): what PPO needs of a trainer besides, done plainly:
     each decision's reward (:func:`agrl.core.reward.step_reward`, the env's) and end (an outcome, or the decision
     budget), fresh starts for the rows that ended (drawn for those rows only), and in the update GAE
@@ -449,7 +451,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--trainers", nargs="+", choices=tuple(TRAINERS), default=["agrl", "stable-baselines3"],
                         help="which trainers to time (default agrl and stable-baselines3; agrl: with the eager loss; "
                              "agrl-compiled: with the compiled loss, agrl's default; floor: the arithmetic in plain "
-                             "PyTorch without rewards, resets or GAE, a lower bound; floor-equal-work: with them)")
+                             "PyTorch without rewards, resets or GAE; floor-equal-work: with them)")
     parser.add_argument("--task", default="fixed")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE",
